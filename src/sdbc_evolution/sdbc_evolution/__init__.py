@@ -1,0 +1,1 @@
+"""sdbc_evolution: systematic behaviour characterisations, novelty search and the GA."""

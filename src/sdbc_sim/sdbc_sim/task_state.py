@@ -1,0 +1,147 @@
+"""The task state formalism (eq. 1 of Gomes, Mariano & Christensen, ALIFE 2014).
+
+A *task description* lists the *entity groups* of a task: their names, the names of
+their per-entity state attributes (the kappa values), their size limits
+(eta_min, eta_max), whether they are static, and the geometry that the distance
+function f_D needs for their entities. It is the only thing the SDBC extractor knows
+about a task.
+
+A *task state* is one step of a batch of trials, batch-first: for every group, which
+entity slots are present in every trial, their attributes and their geometry. The
+engine hands one to its observers after every step; a stream of
+``sdbc_msgs/TaskState`` messages converts to the same arrays with a batch of one.
+
+Shapes use B for the number of trials, S for a group's ``max_size`` (entity slots), A
+for its number of attributes and P for the number of segments of a polygon.
+Coordinates are trial-local arena units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+
+class Geometry(str, Enum):
+    """The shape an entity has for the distance function f_D."""
+
+    CIRCLE = "circle"
+    """A disc: a centre and a radius (robots, the prey, a charging station)."""
+    POINT = "point"
+    """A point: a centre only."""
+    POLYGON = "polygon"
+    """A chain of line segments (walls, a gate, a boundary); distance is to the
+    nearest segment."""
+
+
+@dataclass(frozen=True)
+class EntityGroupSpec:
+    """One entity group of a task description.
+
+    Attributes:
+        name: Human name of the group, used to name features ("Agent", "Gate").
+        attributes: Names of the per-entity state attributes (kappa values), in the
+            order they appear in :attr:`GroupState.attributes`.
+        min_size: eta_min, the fewest entities the group can hold.
+        max_size: eta_max, the most entities the group can hold; also the number of
+            entity slots in the arrays.
+        is_static: True if the group's entities never move. Static groups get no
+            dispersion feature, and no distance feature to another static group.
+        geometry: The shape of the group's entities for f_D.
+    """
+
+    name: str
+    attributes: tuple[str, ...]
+    min_size: int
+    max_size: int
+    is_static: bool
+    geometry: Geometry
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ValueError("entity group: the name is empty")
+        if self.min_size < 0:
+            raise ValueError(f"entity group {self.name!r}: min_size {self.min_size} < 0")
+        if self.min_size > self.max_size:
+            raise ValueError(
+                f"entity group {self.name!r}: min_size {self.min_size} > max_size "
+                f"{self.max_size}"
+            )
+        if self.max_size < 1:
+            raise ValueError(f"entity group {self.name!r}: max_size {self.max_size} < 1")
+        if len(set(self.attributes)) != len(self.attributes):
+            raise ValueError(f"entity group {self.name!r}: duplicate attribute names")
+        object.__setattr__(self, "geometry", Geometry(self.geometry))
+        object.__setattr__(self, "attributes", tuple(self.attributes))
+
+
+@dataclass(frozen=True)
+class TaskDescription:
+    """The entity groups of a task, in the order the task state lists them.
+
+    Attributes:
+        name: The task's name ("gate_escape").
+        groups: The entity groups.
+    """
+
+    name: str
+    groups: tuple[EntityGroupSpec, ...]
+
+    def __post_init__(self) -> None:
+        names = [g.name for g in self.groups]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(
+                f"task description {self.name!r}: duplicate group names {duplicates}"
+            )
+        object.__setattr__(self, "groups", tuple(self.groups))
+
+    def group(self, name: str) -> EntityGroupSpec:
+        """Returns the group called ``name``."""
+        for g in self.groups:
+            if g.name == name:
+                return g
+        raise KeyError(f"task description {self.name!r} has no group {name!r}")
+
+
+@dataclass
+class GroupState:
+    """One entity group at one step, over a batch of trials.
+
+    Arrays may have a leading dimension of 1 instead of B where every trial shares
+    them (a static polygon); readers broadcast.
+
+    Attributes:
+        present: (B, S) bool. Which entity slots hold an entity at this step; the
+            group's size |g| is the row sum.
+        attributes: (B, S, A) float64. State attribute values; undefined where not
+            present.
+        centres: (B, S, 2) float64 for circles and points; None for polygons.
+        radii: (B, S) float64 for circles; None otherwise.
+        segments: (B, S, P, 2, 2) float64 for polygons, each segment as its two end
+            points; None otherwise.
+    """
+
+    present: np.ndarray
+    attributes: np.ndarray
+    centres: np.ndarray | None = None
+    radii: np.ndarray | None = None
+    segments: np.ndarray | None = None
+
+
+@dataclass
+class TaskState:
+    """The task state of a batch of trials after one step.
+
+    Attributes:
+        step: Number of steps taken so far (1 after the first step).
+        active: (B,) bool. Trials that took this step; a finished trial stays
+            inactive and its groups' contents are then meaningless.
+        groups: One :class:`GroupState` per group of the task description, same order.
+    """
+
+    step: int
+    active: np.ndarray
+    groups: tuple[GroupState, ...]
