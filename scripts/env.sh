@@ -1,0 +1,32 @@
+# Source this to use the project's environment in a shell: the venv with ROS 2 Jazzy,
+# the built workspace and safe DDS defaults. scripts/sdbc sources it for you.
+#
+#   source scripts/env.sh
+#
+# It does what `source install/setup.bash` does on a full ROS 2 install, without
+# the per-process re-exec of the wheels' bootstrapper (which costs ~1 s per Python).
+
+_sdbc_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+_sdbc_venv="$_sdbc_root/.venv"
+_sdbc_pyver="$(ls -d "$_sdbc_venv"/lib/python3.* 2>/dev/null | head -n 1 | xargs -r basename)"
+_sdbc_site="$_sdbc_venv/lib/$_sdbc_pyver/site-packages"
+
+export SDBC_ROOT="$_sdbc_root"
+export VIRTUAL_ENV="$_sdbc_venv"
+export PATH="$_sdbc_venv/bin:$_sdbc_root/install/sdbc_sim/lib/sdbc_sim:$_sdbc_root/install/sdbc_evolution/lib/sdbc_evolution:$PATH"
+
+# ROS 2: the workspace overlays the venv, as install/setup.bash would order them.
+export AMENT_PREFIX_PATH="$_sdbc_root/install/sdbc_evolution:$_sdbc_root/install/sdbc_sim:$_sdbc_root/install/sdbc_msgs:$_sdbc_venv"
+export PYTHONPATH="$_sdbc_root/src/sdbc_sim:$_sdbc_root/src/sdbc_evolution:$_sdbc_root/install/sdbc_msgs/lib/$_sdbc_pyver/site-packages${PYTHONPATH:+:$PYTHONPATH}"
+_sdbc_ld="$_sdbc_venv/lib:$_sdbc_root/install/sdbc_msgs/lib"
+for _d in "$_sdbc_site"/ros_*.libs; do [ -d "$_d" ] && _sdbc_ld="$_sdbc_ld:$_d"; done
+export LD_LIBRARY_PATH="$_sdbc_ld${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+export _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
+export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
+
+# DDS discovery never leaves the machine unless the user says otherwise.
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+export ROS_HOME="${ROS_HOME:-$_sdbc_root/.ros}"
+export MPLBACKEND="${MPLBACKEND:-Agg}"
+
+unset _sdbc_root _sdbc_venv _sdbc_pyver _sdbc_site _sdbc_ld _d
