@@ -1,0 +1,41 @@
+"""The project's environment keeps DDS discovery on this machine."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def env_after_sourcing(extra: dict[str, str]) -> dict[str, str]:
+    base = {"PATH": os.environ["PATH"], "HOME": os.environ.get("HOME", "/tmp"), **extra}
+    out = subprocess.run(
+        ["bash", "-c", f"source {ROOT / 'scripts' / 'env.sh'} && env -0"],
+        env=base,
+        capture_output=True,
+        check=True,
+    ).stdout.decode()
+    return dict(item.split("=", 1) for item in out.split("\0") if "=" in item)
+
+
+def test_env_defaults_discovery_to_localhost():
+    env = env_after_sourcing({})
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert env["AMENT_PREFIX_PATH"].endswith(str(ROOT / ".venv"))
+    assert env["ROS_HOME"] == str(ROOT / ".ros")
+
+
+def test_env_keeps_a_users_explicit_choice():
+    env = env_after_sourcing({"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"})
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
+
+
+def test_this_test_run_is_confined_to_localhost_and_its_own_domain():
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert 0 <= int(os.environ["ROS_DOMAIN_ID"]) <= 101
+
+
+def test_ci_sets_localhost_discovery():
+    assert "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in (ROOT / ".ci" / "run").read_text()
