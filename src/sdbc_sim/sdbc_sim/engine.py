@@ -1,0 +1,449 @@
+"""The batched simulation engine: ``run_batch(task, genomes, seeds, observers)``.
+
+Every trial of a batch steps together: the task's sensors, the networks and the
+task's rules run as numpy over all robots of all live trials, the physics as a few
+pymunk Spaces moved in bulk (:mod:`sdbc_sim.physics`). A trial that ends freezes
+at once (its results are taken at its last step); its rows keep riding along, held
+still, until enough trials have ended to make dropping them worthwhile
+(``compact_fraction``), and then stop costing anything.
+
+The same stepping code serves one trial driven from outside, step by step
+(:class:`TrialStepper`, for the live ROS graph), so a trial run live and in a batch
+give the same results to the bit when the outputs come from the same network.
+
+Per-controller aggregates (Gomes et al.; SPEC.md "Evolution"): fitness is the
+harmonic mean over a controller's T trials, T / sum_t 1 / max(F_t, 1e-4), as in the
+authors' code, or the arithmetic mean; the characterisation is the arithmetic mean.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sdbc_sim.network import RowNetworks, check_genomes
+from sdbc_sim.observer import Observer
+from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
+from sdbc_sim.task import BodyState, Task
+from sdbc_sim.task_state import GroupState, TaskState
+
+FITNESS_MEANS = ("harmonic", "arithmetic")
+HARMONIC_FLOOR = 1e-4
+"""A trial's fitness counts as at least this in the harmonic mean (authors' code)."""
+
+
+@dataclass(frozen=True)
+class EngineSettings:
+    """Settings of the engine.
+
+    Attributes:
+        physics: Layout of trials in pymunk and its solver settings.
+        compact_fraction: Finished trials are dropped from the arrays and the
+            Spaces once they make up this share of the rows still held.
+    """
+
+    physics: PhysicsSettings = field(default_factory=PhysicsSettings)
+    compact_fraction: float = 0.125
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.compact_fraction <= 1.0:
+            raise ValueError(
+                "engine: compact_fraction must be in (0, 1], got "
+                f"{self.compact_fraction}"
+            )
+
+
+def check_seeds(seeds: np.ndarray, n_genomes: int | None = None) -> np.ndarray:
+    """Returns ``seeds`` as an int64 (G, T) array, or raises ValueError naming the
+    problem (wrong shape, not integers, negative, genome count mismatch)."""
+    s = np.asarray(seeds)
+    if s.ndim != 2 or s.shape[1] < 1:
+        raise ValueError(
+            f"seeds: expected a (G, T) array with T >= 1, got shape {s.shape}"
+        )
+    if n_genomes is not None and s.shape[0] != n_genomes:
+        raise ValueError(f"seeds: {s.shape[0]} rows for {n_genomes} genomes")
+    if s.size and not np.issubdtype(s.dtype, np.integer):
+        raise ValueError(f"seeds: expected integers, got {s.dtype}")
+    s = s.astype(np.int64)
+    if (s < 0).any():
+        raise ValueError("seeds: must be non-negative")
+    return s
+
+
+class BatchSimulation:
+    """A batch of trials of one task, stepped together.
+
+    Args:
+        task: The task.
+        seeds: (B,) one seed per trial; trial b draws its initial conditions from
+            ``numpy.random.default_rng(seeds[b])``.
+        genomes: (B, W) the genome of each trial's team, or None to supply the
+            network outputs from outside at every :meth:`step`.
+        settings: Engine settings.
+    """
+
+    def __init__(
+        self,
+        task: Task,
+        seeds: np.ndarray,
+        genomes: np.ndarray | None = None,
+        settings: EngineSettings | None = None,
+    ) -> None:
+        self.task = task
+        self.settings = settings or EngineSettings()
+        seeds = check_seeds(np.asarray(seeds).reshape(-1, 1)).ravel()
+        n = self.n_trials = seeds.shape[0]
+        layout = task.layout
+        self._n_bodies = layout.n_bodies
+        self._n_ctrl = layout.n_controlled
+        self._networks: RowNetworks | None = None
+        if genomes is not None:
+            g = check_genomes(genomes, task.network)
+            if g.shape[0] != n:
+                raise ValueError(f"genomes: {g.shape[0]} genomes for {n} trials")
+            self._networks = RowNetworks(
+                task.network, np.repeat(g, self._n_ctrl, axis=0)
+            )
+        rngs = [np.random.default_rng(int(s)) for s in seeds]
+        self.trials, position, angle = task.reset(rngs)
+        if position.shape != (n, self._n_bodies, 2) or angle.shape != (
+            n,
+            self._n_bodies,
+        ):
+            raise ValueError(
+                f"{task.name}: reset gave positions {position.shape} and angles "
+                f"{angle.shape} for {n} trials of {self._n_bodies} bodies"
+            )
+        self.spaces = TrialSpaces(
+            np.asarray(layout.radii),
+            layout.mass,
+            np.asarray(task.walls, dtype=np.float64).reshape(-1, 2, 2),
+            task.extent,
+            position,
+            angle,
+            self.settings.physics,
+        )
+        self._rows = np.empty((n * self._n_bodies, READ_WIDTH))
+        self._turn_rate = np.zeros((n, self._n_bodies))
+        self.spaces.read(self._rows)
+        self.bodies = self._body_views(np.ones((n, self._n_bodies), dtype=bool))
+        self._enabled = self.bodies.enabled.copy()
+        self._running = np.ones(n, dtype=bool)
+        self._took_step = np.zeros(n, dtype=bool)
+        self.step_count = 0
+        self.done = np.zeros(n, dtype=bool)
+        self.length = np.zeros(n, dtype=np.int64)
+        self.fitness = np.full(n, np.nan)
+        self.characterisation = np.full((n, task.characterisation_size), np.nan)
+        self._full: dict[tuple[int, int], np.ndarray] = {}
+
+    @property
+    def live(self) -> np.ndarray:
+        """Indices of the trials whose rows the arrays hold, in row order."""
+        return self.spaces.live
+
+    @property
+    def finished(self) -> bool:
+        """True once every trial has ended."""
+        return bool(self.done.all())
+
+    def _body_views(self, enabled: np.ndarray) -> BodyState:
+        b, r = enabled.shape
+        rows = self._rows
+        return BodyState(
+            position=rows[:, 0:2].reshape(b, r, 2),
+            angle=rows[:, 2].reshape(b, r),
+            velocity=rows[:, 3:5].reshape(b, r, 2),
+            angular_velocity=self._turn_rate,
+            enabled=enabled,
+        )
+
+    def sensors(self) -> np.ndarray:
+        """(n_live, n_controlled, n_inputs) network inputs of the live trials."""
+        return self.task.sensors(self.trials, self.bodies)
+
+    def step(self, outputs: np.ndarray | None = None) -> None:
+        """Advances every running trial by one step.
+
+        Args:
+            outputs: (n_live, n_controlled, n_outputs) network outputs in [0, 1]
+                for the rows of :attr:`live`, when the simulation has no genomes.
+        """
+        if self.finished:
+            raise RuntimeError("step: every trial has ended")
+        self._compact_if_worthwhile()
+        task = self.task
+        n_live = self.live.shape[0]
+        shape = (n_live, self._n_ctrl, task.network.n_outputs)
+        if outputs is None:
+            if self._networks is None:
+                raise ValueError("step: this simulation has no genomes; pass outputs")
+            x = self.sensors().reshape(n_live * self._n_ctrl, -1)
+            outputs = self._networks.forward(x).reshape(shape)
+        else:
+            outputs = np.asarray(outputs, dtype=np.float64)
+            if outputs.shape != shape:
+                raise ValueError(
+                    f"step: outputs have shape {outputs.shape}, need {shape}"
+                )
+            if not np.all((outputs >= 0.0) & (outputs <= 1.0)):
+                raise ValueError(
+                    "step: outputs must lie in [0, 1] (NaN is not allowed)"
+                )
+        speed, turn = task.actuate(self.trials, self.bodies, outputs)
+        self.spaces.step(self._drive(speed, turn))
+        self.spaces.read(self._rows)
+        self.step_count += 1
+        k = self.step_count
+        ends = task.update(self.trials, self.bodies, k)
+        if k >= task.max_steps:
+            ends = np.ones_like(ends)
+        switched_off = self._enabled & ~self.bodies.enabled
+        if switched_off.any():
+            self.spaces.disable(*np.nonzero(switched_off))
+            self._enabled &= self.bodies.enabled
+        np.copyto(self._took_step, self._running)
+        ends &= self._running
+        if ends.any():
+            rows = np.flatnonzero(ends)
+            ids = self.live[rows]
+            self.length[ids] = k
+            f, c = task.results(
+                self.trials.take(rows), np.full(rows.shape, k, np.int64)
+            )
+            self.fitness[ids] = f
+            self.characterisation[ids] = c
+            self.done[ids] = True
+            self._running &= ~ends
+
+    def _drive(self, speed: np.ndarray, turn: np.ndarray) -> np.ndarray:
+        """Drive rows (rows, 4): angle, angular velocity, force x, force y.
+
+        A body turns at once, theta' = theta + turn (headings are kinematic:
+        frictionless circles feel no torque), and the force
+        F = m (v* - v) / dt, v* = speed (cos theta', sin theta'), gives it the
+        commanded velocity, which the contact solver then corrects. Chipmunk
+        integrates positions before velocities, so a body moves with that
+        velocity during the next physics step: one step of actuation delay.
+        Bodies switched off and trials that have ended are brought to rest.
+        """
+        dt = self.settings.physics.dt
+        moving = self.bodies.enabled & self._running[:, None]
+        np.multiply(turn, moving, out=self._turn_rate)
+        self._turn_rate /= dt
+        heading = (self.bodies.angle + self._turn_rate * dt).reshape(-1)
+        v = (speed * moving).reshape(-1)
+        rows = self._rows
+        drive = np.empty((rows.shape[0], WRITE_WIDTH))
+        drive[:, 0] = heading
+        drive[:, 1] = 0.0
+        mass = self.spaces.masses / dt
+        drive[:, 2] = (v * np.cos(heading) - rows[:, 3]) * mass
+        drive[:, 3] = (v * np.sin(heading) - rows[:, 4]) * mass
+        return drive
+
+    def _compact_if_worthwhile(self) -> None:
+        n_live = self._running.shape[0]
+        ended = n_live - int(self._running.sum())
+        if ended == 0 or ended < self.settings.compact_fraction * n_live:
+            return
+        keep = self._running
+        rows = np.flatnonzero(keep)
+        self.spaces.compact(keep)
+        self.trials = self.trials.take(rows)
+        body_rows = np.repeat(keep, self._n_bodies)
+        self._rows = self._rows[body_rows]
+        self._turn_rate = self._turn_rate[rows]
+        self.bodies = self._body_views(self.bodies.enabled[rows])
+        self._enabled = self._enabled[rows]
+        self._running = self._running[rows]
+        self._took_step = self._took_step[rows]
+        if self._networks is not None:
+            self._networks.take(np.flatnonzero(np.repeat(keep, self._n_ctrl)))
+
+    def state(self) -> TaskState:
+        """The task state of the whole batch after the last step.
+
+        Arrays cover all B trials; ``active`` marks the trials that took the last
+        step. Once finished trials have been dropped, the arrays are buffers the
+        engine reuses at the next step: an observer that keeps them must copy.
+        """
+        groups = self.task.task_state(self.trials, self.bodies)
+        active = np.zeros(self.n_trials, dtype=bool)
+        live = self.live
+        active[live[self._took_step]] = True
+        if live.shape[0] == self.n_trials:
+            return TaskState(step=self.step_count, active=active, groups=groups)
+        return TaskState(
+            step=self.step_count,
+            active=active,
+            groups=tuple(self._expand(i, g) for i, g in enumerate(groups)),
+        )
+
+    def _expand(self, index: int, group: GroupState) -> GroupState:
+        """A group over the live rows spread over the whole batch."""
+        n_live = self.live.shape[0]
+        out = {}
+        for j, name in enumerate(
+            ("present", "attributes", "centres", "radii", "segments")
+        ):
+            a = getattr(group, name)
+            if a is None or a.shape[0] != n_live or n_live == 1 and a.shape[0] == 1:
+                out[name] = a
+                continue
+            key = (index, j)
+            buf = self._full.get(key)
+            if buf is None or buf.shape[1:] != a.shape[1:]:
+                buf = self._full[key] = np.zeros((self.n_trials, *a.shape[1:]), a.dtype)
+            buf[self.live] = a
+            out[name] = buf
+        return GroupState(**out)
+
+
+@dataclass
+class BatchResult:
+    """Results of :func:`run_batch`.
+
+    Attributes:
+        fitness: (G, T) fitness of every trial.
+        characterisation: (G, T, C) task-specific characterisation, each in [0, 1].
+        length: (G, T) steps each trial took.
+        controller_fitness: (G,) harmonic (default) or arithmetic mean over trials.
+        controller_characterisation: (G, C) arithmetic mean over trials.
+    """
+
+    fitness: np.ndarray
+    characterisation: np.ndarray
+    length: np.ndarray
+    controller_fitness: np.ndarray
+    controller_characterisation: np.ndarray
+
+
+def controller_fitness(fitness: np.ndarray, mean: str = "harmonic") -> np.ndarray:
+    """(G,) fitness of each controller from its trials' (G, T) fitness.
+
+    harmonic: T / sum_t 1 / max(F_t, 1e-4); arithmetic: sum_t F_t / T.
+    """
+    if mean == "harmonic":
+        return fitness.shape[1] / np.sum(
+            1.0 / np.maximum(fitness, HARMONIC_FLOOR), axis=1
+        )
+    if mean == "arithmetic":
+        return fitness.mean(axis=1)
+    raise ValueError(
+        f"unknown fitness mean {mean!r}; known: {', '.join(FITNESS_MEANS)}"
+    )
+
+
+def run_batch(
+    task: Task,
+    genomes: np.ndarray,
+    seeds: np.ndarray,
+    observers: Sequence[Observer] = (),
+    *,
+    fitness_mean: str = "harmonic",
+    settings: EngineSettings | None = None,
+) -> BatchResult:
+    """Evaluates every genome in its trials.
+
+    Args:
+        task: The task (e.g. ``GateEscape()`` or ``make_task("gate_escape")``).
+        genomes: (G, W) float64 network weights, W = ``task.genome_length``.
+        seeds: (G, T) int64, seed of genome g's t-th trial.
+        observers: Called ``start(task.description, G * T)`` once, then
+            ``observe(state)`` after every step, with the trials in row-major
+            order (trial b = g T + t).
+        fitness_mean: "harmonic" (the authors') or "arithmetic".
+        settings: Engine settings.
+
+    Returns:
+        Per-trial and per-controller results.
+
+    Raises:
+        ValueError: On malformed genomes or seeds or an unknown fitness mean,
+            before anything is simulated.
+    """
+    if fitness_mean not in FITNESS_MEANS:
+        raise ValueError(
+            f"unknown fitness mean {fitness_mean!r}; known: {', '.join(FITNESS_MEANS)}"
+        )
+    g = check_genomes(genomes, task.network)
+    s = check_seeds(seeds, g.shape[0])
+    n_genomes, n_trials = s.shape
+    sim = BatchSimulation(task, s.reshape(-1), np.repeat(g, n_trials, axis=0), settings)
+    for o in observers:
+        o.start(task.description, sim.n_trials)
+    while not sim.finished:
+        sim.step()
+        if observers:
+            state = sim.state()
+            for o in observers:
+                o.observe(state)
+    fitness = sim.fitness.reshape(n_genomes, n_trials)
+    characterisation = sim.characterisation.reshape(n_genomes, n_trials, -1)
+    return BatchResult(
+        fitness=fitness,
+        characterisation=characterisation,
+        length=sim.length.reshape(n_genomes, n_trials),
+        controller_fitness=controller_fitness(fitness, fitness_mean),
+        controller_characterisation=characterisation.mean(axis=1),
+    )
+
+
+class TrialStepper:
+    """One trial stepped from outside: the robots' network outputs come in at every
+    step (the live ROS graph). Built on :class:`BatchSimulation` with one trial,
+    so it matches :func:`run_batch` to the bit for the same outputs.
+
+    Args:
+        task: The task.
+        settings: Engine settings.
+    """
+
+    def __init__(self, task: Task, settings: EngineSettings | None = None) -> None:
+        self.task = task
+        self.settings = settings
+        self._sim: BatchSimulation | None = None
+
+    def reset(self, seed: int) -> None:
+        """Starts a new trial with initial conditions drawn from ``seed``."""
+        self._sim = BatchSimulation(self.task, np.array([seed]), None, self.settings)
+
+    @property
+    def sim(self) -> BatchSimulation:
+        """The underlying one-trial simulation."""
+        if self._sim is None:
+            raise RuntimeError("call reset(seed) first")
+        return self._sim
+
+    @property
+    def done(self) -> bool:
+        """True once the trial has ended."""
+        return self.sim.finished
+
+    @property
+    def step_count(self) -> int:
+        """Steps taken so far."""
+        return self.sim.step_count
+
+    def sensors(self) -> np.ndarray:
+        """(n_controlled, n_inputs) the robots' network inputs."""
+        return self.sim.sensors()[0]
+
+    def step(self, outputs: np.ndarray) -> None:
+        """Advances the trial by one step with (n_controlled, n_outputs) outputs."""
+        self.sim.step(np.asarray(outputs, dtype=np.float64)[None])
+
+    def state(self) -> TaskState:
+        """The task state after the last step (a batch of one)."""
+        return self.sim.state()
+
+    def result(self) -> tuple[float, np.ndarray, int]:
+        """(fitness, characterisation (C,), length) of the ended trial."""
+        if not self.done:
+            raise RuntimeError("result: the trial has not ended")
+        sim = self.sim
+        return float(sim.fitness[0]), sim.characterisation[0].copy(), int(sim.length[0])

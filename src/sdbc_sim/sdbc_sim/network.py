@@ -1,0 +1,147 @@
+"""The controller: a feed-forward network with one hidden layer.
+
+SPEC.md, "Neural controller".
+
+Inputs are linear; the hidden and output units are sigmoids with a bias:
+
+    h_j = sigma(b_j + sum_i W1[j, i] x_i),     o_k = sigma(c_k + sum_j W2[k, j] h_j),
+    sigma(a) = 1 / (1 + exp(-a)).
+
+Genome layout (direct encoding, ``genome_length = (I + 1) H + (H + 1) O``): first the
+hidden layer, one row per hidden unit j holding its I input weights then its bias
+b_j; then the output layer, one row per output unit k holding its H weights then its
+bias c_k. Teams are homogeneous: every robot of a trial runs its trial's genome.
+
+The sums run in a fixed order (i = 0..I-1, then j = 0..H-1) as element-wise array
+operations rather than through BLAS, whose summation order may depend on the matrix
+sizes: a robot's outputs are then the same to the bit whatever else shares the batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class NetworkShape:
+    """Layer sizes of the controller network.
+
+    Attributes:
+        n_inputs: I, the number of sensor inputs.
+        n_hidden: H, the number of hidden sigmoid units.
+        n_outputs: O, the number of output sigmoid units.
+    """
+
+    n_inputs: int
+    n_hidden: int
+    n_outputs: int
+
+    def __post_init__(self) -> None:
+        for name in ("n_inputs", "n_hidden", "n_outputs"):
+            if getattr(self, name) < 1:
+                raise ValueError(
+                    f"network: {name} must be >= 1, got {getattr(self, name)}"
+                )
+
+    @property
+    def genome_length(self) -> int:
+        """(I + 1) H + (H + 1) O weights, biases included."""
+        return (self.n_inputs + 1) * self.n_hidden + (
+            self.n_hidden + 1
+        ) * self.n_outputs
+
+
+def check_genomes(genomes: np.ndarray, shape: NetworkShape) -> np.ndarray:
+    """Returns ``genomes`` as a float64 (G, W) array, or raises ValueError.
+
+    Raises:
+        ValueError: If the array is not 2-D, a genome does not have
+            ``shape.genome_length`` weights, or a weight is NaN or infinite.
+    """
+    g = np.asarray(genomes, dtype=np.float64)
+    if g.ndim != 2:
+        raise ValueError(f"genomes: expected a (G, W) array, got shape {g.shape}")
+    if g.shape[1] != shape.genome_length:
+        raise ValueError(
+            f"genomes: length {g.shape[1]} does not match the network "
+            f"{shape.n_inputs}-{shape.n_hidden}-{shape.n_outputs}, which needs "
+            f"{shape.genome_length} weights"
+        )
+    bad = ~np.isfinite(g)
+    if bad.any():
+        rows = np.unique(np.nonzero(bad)[0])
+        raise ValueError(
+            f"genomes: NaN or infinite weights in genome(s) {rows[:10].tolist()}"
+        )
+    return g
+
+
+def sigmoid(a: np.ndarray) -> np.ndarray:
+    """The logistic function 1 / (1 + exp(-a)), in place on ``a``."""
+    np.negative(a, out=a)
+    np.exp(a, out=a)
+    a += 1.0
+    np.reciprocal(a, out=a)
+    return a
+
+
+class RowNetworks:
+    """One network per row (robot) of a batch, evaluated together.
+
+    Weights are stored per row, input-major, so that each step is a short fixed
+    sequence of multiply-adds over contiguous (rows, units) arrays.
+
+    Args:
+        shape: The layer sizes.
+        genomes: (R, W) float64, the genome of each row; already checked.
+    """
+
+    def __init__(self, shape: NetworkShape, genomes: np.ndarray) -> None:
+        self.shape = shape
+        n_in, n_hid, n_out = shape.n_inputs, shape.n_hidden, shape.n_outputs
+        rows = genomes.shape[0]
+        split = (n_in + 1) * n_hid
+        hidden = genomes[:, :split].reshape(rows, n_hid, n_in + 1)
+        output = genomes[:, split:].reshape(rows, n_out, n_hid + 1)
+        # (I, R, H) and (H, R, O): one contiguous (R, units) slab per source unit.
+        self.w_hidden = np.ascontiguousarray(hidden[:, :, :n_in].transpose(2, 0, 1))
+        self.b_hidden = np.ascontiguousarray(hidden[:, :, n_in])
+        self.w_output = np.ascontiguousarray(output[:, :, :n_hid].transpose(2, 0, 1))
+        self.b_output = np.ascontiguousarray(output[:, :, n_hid])
+
+    @property
+    def rows(self) -> int:
+        """Number of rows (robots)."""
+        return self.b_hidden.shape[0]
+
+    def take(self, rows: np.ndarray) -> None:
+        """Keeps only ``rows`` (index array), in that order."""
+        self.w_hidden = np.ascontiguousarray(self.w_hidden[:, rows])
+        self.b_hidden = self.b_hidden[rows]
+        self.w_output = np.ascontiguousarray(self.w_output[:, rows])
+        self.b_output = self.b_output[rows]
+
+    def forward(self, x: np.ndarray) -> np.ndarray:
+        """Outputs (R, O) in [0, 1] for inputs ``x`` (R, I)."""
+        h = _layer(x, self.w_hidden, self.b_hidden)
+        return _layer(h, self.w_output, self.b_output)
+
+
+def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """sigma(b + sum_i w[i] x_i) for a layer stored source-unit-major."""
+    a = b.copy()
+    tmp = np.empty_like(a)
+    for i in range(w.shape[0]):
+        np.multiply(w[i], x[:, i : i + 1], out=tmp)
+        a += tmp
+    return sigmoid(a)
+
+
+def forward(genome: np.ndarray, shape: NetworkShape, x: np.ndarray) -> np.ndarray:
+    """Outputs (R, O) of one genome (W,) for inputs ``x`` (R, I); same arithmetic
+    as :class:`RowNetworks`, so a controller run live matches the batch bit for bit."""
+    g = check_genomes(np.asarray(genome, dtype=np.float64)[None, :], shape)
+    x = np.asarray(x, dtype=np.float64)
+    return RowNetworks(shape, np.repeat(g, x.shape[0], axis=0)).forward(x)

@@ -1,0 +1,205 @@
+"""The task interface: what a task declares, and what the engine asks of it.
+
+How to write a task
+===================
+
+A task is one module in ``sdbc_sim/tasks/`` holding a settings dataclass (every
+number of SPEC.md as a default, one docstring line per field, checked in
+``__post_init__``) and a :class:`Task` subclass with class attributes ``name`` and
+``config_class``, and ends with ``TASK = MyTask``: the registry
+(:func:`sdbc_sim.tasks.make_task`) finds it there. It never touches the engine.
+
+The engine owns the physics: every body of every trial is a pymunk circle driven
+through force and torque, walls are static segments, and trials never meet. The task
+owns everything else, as numpy over the live trials of a batch (B trials, R bodies
+each, batch-first arrays, trial-local coordinates; no Python loop per trial or per
+robot inside a step). It declares, as attributes set in ``__init__``:
+
+- ``description``: the :class:`~sdbc_sim.task_state.TaskDescription` (entity groups)
+  that the SDBC extractor reads;
+- ``network``: the :class:`~sdbc_sim.network.NetworkShape` of the controller;
+- ``layout``: a :class:`BodyLayout`, the radius of each body of a trial and whether
+  the network drives it (robots) or the task does (a scripted prey);
+- ``walls``: (P, 2, 2) static segments, possibly empty;
+- ``extent``: (x_min, y_min, x_max, y_max), a box no body centre can ever leave
+  (for arenas without walls, allow for ``max speed x max_steps``); the engine sizes
+  the trial slots from it;
+- ``max_steps`` and ``characterisation_size``.
+
+Then each step of a batch runs, in this order:
+
+1. ``sensors(trials, bodies)`` -> (B, n_controlled, n_inputs) network inputs;
+2. the network (or an outside controller) turns them into outputs in [0, 1];
+3. ``actuate(trials, bodies, outputs)`` -> (speed, turn), each (B, R): every body
+   turns by ``turn`` radians and moves ``speed`` units along its new heading; the
+   engine turns it at once and drives it there with F = m (v* - v) / dt (the
+   move happens during the next physics step);
+4. the physics step; ``bodies`` then holds the new state;
+5. ``update(trials, bodies, step)`` applies the rules and accumulates what the
+   fitness and characterisation need, and returns which trials end at this step
+   (the engine ends every trial at ``max_steps`` by itself). It may switch bodies
+   off for good (``bodies.enabled[b, i] = False``: an escaped or captured robot):
+   the engine then takes them out of every collision and holds them still;
+6. if anyone observes: ``task_state(trials, bodies)`` -> one
+   :class:`~sdbc_sim.task_state.GroupState` per group;
+7. for the trials that ended: ``results(trials, length)`` -> (fitness (B,),
+   characterisation (B, C), each value in [0, 1]). Their values then freeze.
+
+``reset(rngs)`` draws the initial conditions, each trial from its own
+``numpy.random.Generator`` in a fixed order, and returns the task's per-trial state
+(a :class:`TrialArrays` dataclass: every field an array with the trials first, so
+the engine can drop finished trials) with the bodies' start positions and headings.
+A trial's result must depend only on (settings, genome, seed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar, Self
+
+import numpy as np
+
+from sdbc_sim.network import NetworkShape
+from sdbc_sim.task_state import GroupState, TaskDescription
+
+
+@dataclass(frozen=True)
+class BodyLayout:
+    """The physical bodies of one trial, in the order of the (B, R) arrays.
+
+    Attributes:
+        radii: Radius of each body.
+        controlled: Whether each body is driven by the network (the first
+            ``n_controlled`` bodies must be the controlled ones).
+        mass: Mass of every body; the moment of inertia is that of a disc.
+    """
+
+    radii: tuple[float, ...]
+    controlled: tuple[bool, ...]
+    mass: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "radii", tuple(float(r) for r in self.radii))
+        object.__setattr__(self, "controlled", tuple(bool(c) for c in self.controlled))
+        if not self.radii:
+            raise ValueError("body layout: a trial needs at least one body")
+        if len(self.controlled) != len(self.radii):
+            raise ValueError(
+                f"body layout: {len(self.radii)} radii but {len(self.controlled)} "
+                "controlled flags"
+            )
+        bad = [r for r in self.radii if not (np.isfinite(r) and r > 0.0)]
+        if bad:
+            raise ValueError(f"body layout: radii must be positive, got {bad}")
+        n = self.n_controlled
+        if not all(self.controlled[:n]) or any(self.controlled[n:]):
+            raise ValueError("body layout: the controlled bodies must come first")
+        if not (np.isfinite(self.mass) and self.mass > 0.0):
+            raise ValueError(f"body layout: mass must be positive, got {self.mass}")
+
+    @property
+    def n_bodies(self) -> int:
+        """R, the number of bodies per trial."""
+        return len(self.radii)
+
+    @property
+    def n_controlled(self) -> int:
+        """Number of bodies driven by the network."""
+        return sum(self.controlled)
+
+
+@dataclass
+class BodyState:
+    """Physical state of the bodies of the live trials, trial-local coordinates.
+
+    Attributes:
+        position: (B, R, 2) centres.
+        angle: (B, R) headings, radians, not wrapped.
+        velocity: (B, R, 2) linear velocities, units per step.
+        angular_velocity: (B, R) turning speed, radians per step: the last turn.
+        enabled: (B, R) bool; False once the task has switched a body off.
+    """
+
+    position: np.ndarray
+    angle: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    enabled: np.ndarray
+
+    @property
+    def speed(self) -> np.ndarray:
+        """(B, R) linear speed |v|."""
+        return np.hypot(self.velocity[..., 0], self.velocity[..., 1])
+
+
+@dataclass
+class TrialArrays:
+    """Base of a task's per-trial state: every field an array, trials first."""
+
+    def take(self, rows: np.ndarray) -> Self:
+        """The same state restricted to ``rows`` (an index array)."""
+        return type(self)(
+            **{f.name: getattr(self, f.name)[rows] for f in dataclasses.fields(self)}
+        )
+
+
+class Task(ABC):
+    """A task of the paper: arena, bodies, sensors, rules, fitness and
+    characterisation, over a batch of trials. See the module docstring."""
+
+    name: ClassVar[str]
+    config_class: ClassVar[type]
+    config: Any
+    description: TaskDescription
+    network: NetworkShape
+    layout: BodyLayout
+    walls: np.ndarray
+    extent: tuple[float, float, float, float]
+    max_steps: int
+    characterisation_size: int
+
+    @property
+    def genome_length(self) -> int:
+        """Number of network weights a genome holds."""
+        return self.network.genome_length
+
+    @abstractmethod
+    def reset(
+        self, rngs: list[np.random.Generator]
+    ) -> tuple[TrialArrays, np.ndarray, np.ndarray]:
+        """Initial conditions of ``len(rngs)`` trials.
+
+        Returns:
+            (trials, position (B, R, 2), angle (B, R)).
+        """
+
+    @abstractmethod
+    def sensors(self, trials: TrialArrays, bodies: BodyState) -> np.ndarray:
+        """(B, n_controlled, n_inputs) network inputs."""
+
+    @abstractmethod
+    def actuate(
+        self, trials: TrialArrays, bodies: BodyState, outputs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Speed and turn (B, R) of every body from the network outputs
+        (B, n_controlled, n_outputs)."""
+
+    @abstractmethod
+    def update(self, trials: TrialArrays, bodies: BodyState, step: int) -> np.ndarray:
+        """Rules after the physics step ``step`` (1-based); (B,) bool: trials that
+        end at this step."""
+
+    @abstractmethod
+    def task_state(
+        self, trials: TrialArrays, bodies: BodyState
+    ) -> tuple[GroupState, ...]:
+        """The task state of the live trials, one group per description group."""
+
+    @abstractmethod
+    def results(
+        self, trials: TrialArrays, length: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Fitness (B,) and task-specific characterisation (B, C) of trials that
+        ended after ``length`` (B,) steps."""

@@ -1,0 +1,441 @@
+"""Gate escape (SPEC.md, "Tasks"; Gomes, Mariano & Christensen, ALIFE 2014).
+
+A team of robots in a walled square arena must leave through a gate in the middle
+of the left wall. The gate starts closing when the first robot passes and is closed
+``gate_closing_steps`` later, which ends the trial; the trial also ends when no
+robot is left inside, and after ``max_steps``.
+
+Fitness (paper, eq. F_g): F_g = (g + t / tau) / (1 + N), g robots escaped, t the
+trial length, tau = ``max_steps``. The authors' code scored
+``w g / N + (1 - w) (1 - t_open / tau)`` (0 if nobody escaped), t_open the step of
+the first escape: ``fitness="mase"``.
+
+Task-specific characterisation, each in [0, 1]: escaped fraction g / N; t_open / tau
+(1 if the gate never started closing); mean distance of the robots to the gate
+centre / arena size; mean distance of the robots to their centroid / (size / 2).
+Both means run over every step and every robot, escaped ones included where they
+left (as the authors' code did); the last two are capped at 1.
+
+Sensors (inputs, in this order; readings in [-1, 1] as in the authors' code,
+2 d / range - 1, 1 when nothing is sensed):
+  0. gate centre distance (centre to gate centre), range ``gate_sensor_range``;
+     1 when out of range;
+  1. gate bearing / pi; 0 when out of range;
+  2. robots within ``neighbour_range`` (edge to edge): 2 n / (N - 1) - 1;
+  3.. ``n_robot_arcs`` arcs: nearest robot's edge distance per sector (sector j is
+     centred on bearing -pi + 2 pi j / n, so 4 arcs look back, right, ahead, left);
+  .. ``n_wall_rays`` rays from the robot's edge, the first at -pi / n_rays from the
+     heading, then every 2 pi / n_rays; distance to the first wall crossed within
+     ``wall_ray_range``.
+
+Outputs: speed o0 x ``max_speed``, 0 if o2 > ``stop_threshold``; turn
+(2 o1 - 1) x ``max_turn`` radians, applied before the move.
+
+Choices where SPEC.md is silent (from the authors' code where it says):
+- Start: robot i at distance (i + 1) x ``start_spacing`` from the gate centre, at an
+  angle drawn uniformly in [0, 2 pi) and redrawn until the robot lies inside the
+  arena without touching a wall or an earlier robot; heading uniform in [-pi, pi).
+  Per robot: the angle draws, then the heading.
+- A robot has escaped once its centre crosses the gate line (x < 0); the walls let
+  it cross only through the gate. It then leaves the Agent group, the physics (no
+  more contacts, held still where it left) and the other robots' sensors.
+- "Is passing gate": the centre is within one radius of the gate line and between
+  the gate posts.
+- The trial ends at step t_open + ``gate_closing_steps``.
+- Task state: Agent (x, y, turning speed = angular velocity, linear speed = |v|,
+  is passing gate; robots still inside), Gate (is closing; one segment spanning the
+  opening, static), Wall (the walls as segments, the opening left out, static).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sdbc_sim.network import NetworkShape
+from sdbc_sim.sensors import (
+    TWO_PI,
+    arc_index,
+    arc_minimum,
+    bearing,
+    normalised_reading,
+    pairwise_offsets,
+    ray_segment_distance,
+)
+from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
+from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
+
+FITNESS_FUNCTIONS = ("paper", "mase")
+_MAX_START_DRAWS = 100_000
+"""Angle draws per robot before a start position counts as impossible."""
+
+
+@dataclass(frozen=True)
+class GateEscapeConfig:
+    """Settings of the gate escape task; defaults from SPEC.md.
+
+    Attributes:
+        arena_size: Side of the square arena.
+        gate_width: Width of the gate opening, centred in the left wall.
+        n_robots: N, robots in the team.
+        robot_radius: Radius of a robot.
+        max_speed: Top speed, units per step.
+        max_turn: Largest turn, radians per step.
+        start_spacing: Robot i starts (i + 1) x this from the gate centre.
+        gate_sensor_range: Range of the gate distance and bearing sensor.
+        neighbour_range: Range (edge to edge) of the neighbour count and arcs.
+        n_robot_arcs: Robot-sensing arcs.
+        wall_ray_range: Length of a wall-sensing ray, from the robot's edge.
+        n_wall_rays: Wall-sensing rays.
+        n_hidden: Hidden units of the network.
+        stop_threshold: Output o2 above this stops the robot.
+        gate_closing_steps: Steps from the first escape until the gate is closed.
+        max_steps: tau, the longest trial.
+        fitness: "paper" for F_g = (g + t / tau) / (1 + N), "mase" for the authors'
+            code's w g / N + (1 - w) (1 - t_open / tau).
+        mase_escape_weight: w of the "mase" fitness.
+    """
+
+    arena_size: float = 200.0
+    gate_width: float = 25.0
+    n_robots: int = 4
+    robot_radius: float = 2.5
+    max_speed: float = 1.0
+    max_turn: float = 1.57
+    start_spacing: float = 49.375
+    gate_sensor_range: float = 50.0
+    neighbour_range: float = 25.0
+    n_robot_arcs: int = 4
+    wall_ray_range: float = 5.0
+    n_wall_rays: int = 4
+    n_hidden: int = 7
+    stop_threshold: float = 0.5
+    gate_closing_steps: int = 75
+    max_steps: int = 1000
+    fitness: str = "paper"
+    mase_escape_weight: float = 0.8
+
+    def __post_init__(self) -> None:
+        for name in (
+            "arena_size",
+            "gate_width",
+            "robot_radius",
+            "max_speed",
+            "max_turn",
+            "start_spacing",
+            "gate_sensor_range",
+            "neighbour_range",
+            "wall_ray_range",
+        ):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"gate_escape: {name} must be positive, got {v}")
+        for name in (
+            "n_robots",
+            "n_robot_arcs",
+            "n_wall_rays",
+            "n_hidden",
+            "max_steps",
+        ):
+            if getattr(self, name) < 1:
+                raise ValueError(
+                    f"gate_escape: {name} must be >= 1, got {getattr(self, name)}"
+                )
+        if self.gate_closing_steps < 0:
+            raise ValueError(
+                f"gate_escape: gate_closing_steps must be >= 0, got "
+                f"{self.gate_closing_steps}"
+            )
+        if not 0.0 <= self.stop_threshold <= 1.0:
+            raise ValueError(
+                "gate_escape: stop_threshold must be in [0, 1], got "
+                f"{self.stop_threshold}"
+            )
+        if self.fitness not in FITNESS_FUNCTIONS:
+            raise ValueError(
+                f"gate_escape: unknown fitness {self.fitness!r}; known: "
+                f"{', '.join(FITNESS_FUNCTIONS)}"
+            )
+        if not 0.0 <= self.mase_escape_weight <= 1.0:
+            raise ValueError(
+                "gate_escape: mase_escape_weight must be in [0, 1], got "
+                f"{self.mase_escape_weight}"
+            )
+        r, s = self.robot_radius, self.arena_size
+        if self.max_speed >= r:
+            raise ValueError(
+                f"gate_escape: max_speed {self.max_speed} must be below the robot "
+                f"radius {r}, or robots could pass through walls in one step"
+            )
+        if self.gate_width <= 2.0 * r or self.gate_width >= s:
+            raise ValueError(
+                f"gate_escape: gate_width {self.gate_width} must lie between a robot's "
+                f"diameter {2.0 * r} and the arena size {s}"
+            )
+        farthest = math.hypot(s - r, s / 2.0 - r)
+        outer = self.n_robots * self.start_spacing
+        if self.start_spacing < 2.0 * r or outer > farthest:
+            raise ValueError(
+                f"gate_escape: the arena is too small for its robots: {self.n_robots} "
+                f"robots of radius {r} on rings {self.start_spacing} apart need rings "
+                f"at least {2.0 * r} apart, the outermost ({outer}) within "
+                f"{farthest:.3f} of the gate in a {s} arena"
+            )
+
+    @property
+    def n_inputs(self) -> int:
+        """Gate distance and bearing, neighbour count, arcs, rays."""
+        return 3 + self.n_robot_arcs + self.n_wall_rays
+
+
+@dataclass
+class GateEscapeTrials(TrialArrays):
+    """Per-trial state of gate escape.
+
+    Attributes:
+        escaped: (B, N) bool, robots that have left through the gate.
+        open_step: (B,) int, step of the first escape (gate starts closing), -1
+            before.
+        gate_distance_sum: (B,) sum over steps of the robots' mean distance to
+            the gate centre.
+        dispersion_sum: (B,) sum over steps of the robots' mean distance to
+            their centroid.
+    """
+
+    escaped: np.ndarray
+    open_step: np.ndarray
+    gate_distance_sum: np.ndarray
+    dispersion_sum: np.ndarray
+
+
+class GateEscape(Task):
+    """The gate escape task over a batch of trials."""
+
+    name = "gate_escape"
+    config_class = GateEscapeConfig
+
+    def __init__(self, config: GateEscapeConfig | None = None) -> None:
+        c = self.config = config or GateEscapeConfig()
+        n, s, r = c.n_robots, c.arena_size, c.robot_radius
+        self.network = NetworkShape(c.n_inputs, c.n_hidden, 3)
+        self.layout = BodyLayout(radii=(r,) * n, controlled=(True,) * n)
+        self.max_steps = c.max_steps
+        self.characterisation_size = 4
+        self.gate_centre = np.array([0.0, s / 2.0])
+        self.gate_low = s / 2.0 - c.gate_width / 2.0
+        self.gate_high = s / 2.0 + c.gate_width / 2.0
+        # The authors' wall polygon: from the upper gate post round to the lower one.
+        corners = [(0.0, self.gate_high), (0.0, s), (s, s), (s, 0.0), (0.0, 0.0)]
+        corners.append((0.0, self.gate_low))
+        self.walls = np.array([[corners[i], corners[i + 1]] for i in range(5)])
+        self.gate = np.array([[[0.0, self.gate_low], [0.0, self.gate_high]]])
+        # Escaped robots stop just outside the gate; leave them room.
+        self.extent = (-s / 2.0, 0.0, s, s)
+        self.description = TaskDescription(
+            name=self.name,
+            groups=(
+                EntityGroupSpec(
+                    "Agent",
+                    ("x", "y", "turning speed", "linear speed", "is passing gate"),
+                    0,
+                    n,
+                    False,
+                    Geometry.CIRCLE,
+                ),
+                EntityGroupSpec("Gate", ("is closing",), 1, 1, True, Geometry.POLYGON),
+                EntityGroupSpec("Wall", (), 1, 1, True, Geometry.POLYGON),
+            ),
+        )
+        arc = TWO_PI / c.n_wall_rays
+        ray_angles = -arc / 2.0 + arc * np.arange(c.n_wall_rays)
+        self._ray_cos = np.cos(ray_angles)
+        self._ray_sin = np.sin(ray_angles)
+        self._not_self = ~np.eye(n, dtype=bool)
+        self._radii = np.full((1, n), r)
+        self._gate_segments = self.gate[None, None]
+        self._wall_segments = self.walls[None, None]
+
+    def reset(
+        self, rngs: list[np.random.Generator]
+    ) -> tuple[GateEscapeTrials, np.ndarray, np.ndarray]:
+        c = self.config
+        n, r, s = c.n_robots, c.robot_radius, c.arena_size
+        b = len(rngs)
+        position = np.empty((b, n, 2))
+        angle = np.empty((b, n))
+        for t, rng in enumerate(rngs):
+            for i in range(n):
+                ring = (i + 1) * c.start_spacing
+                for _ in range(_MAX_START_DRAWS):
+                    a = rng.uniform(0.0, TWO_PI)
+                    p = self.gate_centre + ring * np.array([math.cos(a), math.sin(a)])
+                    inside = bool(np.all((p >= r) & (p <= s - r)))
+                    apart = i == 0 or bool(
+                        np.all(np.hypot(*(position[t, :i] - p).T) >= 2.0 * r)
+                    )
+                    if inside and apart:
+                        break
+                else:
+                    raise RuntimeError(
+                        f"gate_escape: no valid start for robot {i} after "
+                        f"{_MAX_START_DRAWS} draws"
+                    )
+                position[t, i] = p
+                angle[t, i] = rng.uniform(-np.pi, np.pi)
+        trials = GateEscapeTrials(
+            escaped=np.zeros((b, n), dtype=bool),
+            open_step=np.full(b, -1, dtype=np.int64),
+            gate_distance_sum=np.zeros(b),
+            dispersion_sum=np.zeros(b),
+        )
+        return trials, position, angle
+
+    def sensors(self, trials: GateEscapeTrials, bodies: BodyState) -> np.ndarray:
+        c = self.config
+        pos, heading = bodies.position, bodies.angle
+        b, n = heading.shape
+        out = np.empty((b, n, c.n_inputs))
+        # Gate centre.
+        gx = self.gate_centre[0] - pos[..., 0]
+        gy = self.gate_centre[1] - pos[..., 1]
+        gd = np.hypot(gx, gy)
+        seen = gd <= c.gate_sensor_range
+        out[..., 0] = np.where(seen, normalised_reading(gd, c.gate_sensor_range), 1.0)
+        out[..., 1] = np.where(seen, bearing(gx, gy, heading) / np.pi, 0.0)
+        # Other robots still inside, edge to edge.
+        dx, dy, dist = pairwise_offsets(pos)
+        edge = dist - 2.0 * c.robot_radius
+        sensed = (
+            (edge <= c.neighbour_range) & self._not_self & bodies.enabled[:, None, :]
+        )
+        out[..., 2] = sensed.sum(axis=-1) * (2.0 / max(n - 1, 1)) - 1.0
+        readings = np.where(sensed, normalised_reading(edge, c.neighbour_range), 1.0)
+        np.maximum(readings, -1.0, out=readings)
+        arcs = arc_index(bearing(dx, dy, heading[..., None]), c.n_robot_arcs)
+        out[..., 3 : 3 + c.n_robot_arcs] = arc_minimum(readings, arcs, c.n_robot_arcs)
+        out[..., 3 + c.n_robot_arcs :] = self._wall_rays(pos, heading)
+        return out
+
+    def _wall_rays(self, pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
+        """(B, N, n_rays) wall readings; rays are cast only for robots close
+        enough to a wall for a ray to reach it (the walls lie on the arena's
+        border)."""
+        c = self.config
+        s, r, reach = c.arena_size, c.robot_radius, c.robot_radius + c.wall_ray_range
+        out = np.ones((*heading.shape, c.n_wall_rays))
+        x, y = pos[..., 0], pos[..., 1]
+        near = np.flatnonzero(
+            (x < reach) | (x > s - reach) | (y < reach) | (y > s - reach)
+        )
+        if near.size == 0:
+            return out
+        p = pos.reshape(-1, 2)[near]
+        h = heading.reshape(-1)[near]
+        cos_h, sin_h = np.cos(h)[:, None], np.sin(h)[:, None]
+        ux = cos_h * self._ray_cos - sin_h * self._ray_sin
+        uy = sin_h * self._ray_cos + cos_h * self._ray_sin
+        u = np.stack([ux, uy], axis=-1).reshape(-1, 2)
+        origin = np.repeat(p, c.n_wall_rays, axis=0) + r * u
+        d = ray_segment_distance(origin, u, c.wall_ray_range, self.walls)
+        reading = np.where(np.isfinite(d), normalised_reading(d, c.wall_ray_range), 1.0)
+        out.reshape(-1, c.n_wall_rays)[near] = reading.reshape(-1, c.n_wall_rays)
+        return out
+
+    def actuate(
+        self, trials: GateEscapeTrials, bodies: BodyState, outputs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        speed = np.where(
+            outputs[..., 2] > c.stop_threshold, 0.0, outputs[..., 0] * c.max_speed
+        )
+        turn = (2.0 * outputs[..., 1] - 1.0) * c.max_turn
+        return speed, turn
+
+    def update(
+        self, trials: GateEscapeTrials, bodies: BodyState, step: int
+    ) -> np.ndarray:
+        c = self.config
+        pos = bodies.position
+        crossed = bodies.enabled & (pos[..., 0] < 0.0)
+        if crossed.any():
+            trials.escaped |= crossed
+            bodies.enabled &= ~crossed
+            opens = crossed.any(axis=1) & (trials.open_step < 0)
+            trials.open_step[opens] = step
+        gd = np.hypot(
+            pos[..., 0] - self.gate_centre[0], pos[..., 1] - self.gate_centre[1]
+        )
+        trials.gate_distance_sum += gd.mean(axis=1)
+        centroid = pos.mean(axis=1, keepdims=True)
+        spread = pos - centroid
+        trials.dispersion_sum += np.hypot(spread[..., 0], spread[..., 1]).mean(axis=1)
+        closed = (trials.open_step >= 0) & (
+            step - trials.open_step >= c.gate_closing_steps
+        )
+        return closed | trials.escaped.all(axis=1)
+
+    def task_state(
+        self, trials: GateEscapeTrials, bodies: BodyState
+    ) -> tuple[GroupState, ...]:
+        c = self.config
+        pos = bodies.position
+        b, n = bodies.angle.shape
+        passing = (
+            (np.abs(pos[..., 0]) <= c.robot_radius)
+            & (pos[..., 1] > self.gate_low)
+            & (pos[..., 1] < self.gate_high)
+        )
+        agents = np.empty((b, n, 5))
+        agents[..., 0:2] = pos
+        agents[..., 2] = bodies.angular_velocity
+        agents[..., 3] = bodies.speed
+        agents[..., 4] = passing
+        closing = (trials.open_step >= 0).astype(np.float64)[:, None, None]
+        return (
+            GroupState(
+                present=bodies.enabled.copy(),
+                attributes=agents,
+                centres=pos.copy(),
+                radii=self._radii,
+            ),
+            GroupState(
+                present=np.ones((1, 1), dtype=bool),
+                attributes=closing,
+                segments=self._gate_segments,
+            ),
+            GroupState(
+                present=np.ones((1, 1), dtype=bool),
+                attributes=np.empty((1, 1, 0)),
+                segments=self._wall_segments,
+            ),
+        )
+
+    def results(
+        self, trials: GateEscapeTrials, length: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        n, tau = c.n_robots, c.max_steps
+        escaped = trials.escaped.sum(axis=1).astype(np.float64)
+        opened = trials.open_step >= 0
+        if c.fitness == "paper":
+            fitness = (escaped + length / tau) / (1.0 + n)
+        else:
+            w = c.mase_escape_weight
+            early = 1.0 - trials.open_step / tau
+            fitness = np.where(opened, w * escaped / n + (1.0 - w) * early, 0.0)
+        characterisation = np.stack(
+            [
+                escaped / n,
+                np.where(opened, trials.open_step / tau, 1.0),
+                np.minimum(trials.gate_distance_sum / length / c.arena_size, 1.0),
+                np.minimum(trials.dispersion_sum / length / (c.arena_size / 2.0), 1.0),
+            ],
+            axis=1,
+        )
+        return fitness, characterisation
+
+
+TASK = GateEscape
+"""The task this module registers (see :mod:`sdbc_sim.tasks`)."""
