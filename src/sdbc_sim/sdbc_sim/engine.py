@@ -204,6 +204,7 @@ class BatchSimulation:
         switched_off = self._enabled & ~self.bodies.enabled
         if switched_off.any():
             self.spaces.disable(*np.nonzero(switched_off))
+            self.bodies.velocity[switched_off] = 0.0
             self._enabled &= self.bodies.enabled
         np.copyto(self._took_step, self._running)
         ends &= self._running

@@ -21,6 +21,8 @@ the engine's rows is read back (``BODY_ID``) after every compaction.
 
 from __future__ import annotations
 
+import atexit
+import gc
 import math
 from dataclasses import dataclass
 
@@ -38,6 +40,10 @@ WRITE_WIDTH = 4
 _WORLD_ORIGIN = 2.0**16
 """Every slot lies in [2^16, 2^17): one float exponent for all world coordinates."""
 _NO_CONTACT = pymunk.ShapeFilter(categories=0)
+
+# Spaces left in reference cycles would otherwise be freed during interpreter
+# shutdown, after pymunk's callbacks are gone (it then prints a warning per call).
+atexit.register(gc.collect)
 
 
 @dataclass(frozen=True)
@@ -307,10 +313,13 @@ class TrialSpaces:
             sp.space.step(dt)
 
     def disable(self, trials: np.ndarray, bodies: np.ndarray) -> None:
-        """Takes bodies out of every collision: ``trials`` are live-row trial
-        indices, ``bodies`` body indices within those trials."""
+        """Takes bodies out of every collision and stops them where they are:
+        ``trials`` are live-row trial indices, ``bodies`` body indices within
+        those trials."""
         for t, i in zip(self.live[trials].tolist(), bodies.tolist(), strict=True):
-            self._space_of[t].shapes[t][i].filter = _NO_CONTACT
+            sp = self._space_of[t]
+            sp.shapes[t][i].filter = _NO_CONTACT
+            sp.bodies[t][i].velocity = (0.0, 0.0)
 
     def compact(self, keep: np.ndarray) -> None:
         """Removes the live trials not in ``keep`` ((n_live,) bool) from pymunk."""

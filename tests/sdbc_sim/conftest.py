@@ -1,0 +1,30 @@
+"""Helpers for engine and task tests: tasks started from hand-placed robots."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from sdbc_sim.task import Task
+
+
+def _place(task: Task, position: np.ndarray, angle: np.ndarray) -> Task:
+    position = np.asarray(position, dtype=np.float64)
+    angle = np.asarray(angle, dtype=np.float64)
+    draw = task.reset
+
+    def reset(rngs: list[np.random.Generator]):
+        trials, _, _ = draw(rngs)
+        b = len(rngs)
+        return trials, np.repeat(position[None], b, 0), np.repeat(angle[None], b, 0)
+
+    task.reset = reset  # type: ignore[method-assign]
+    return task
+
+
+@pytest.fixture
+def placed() -> Callable[[Task, np.ndarray, np.ndarray], Task]:
+    """``placed(task, position, angle)``: ``task`` with every trial starting from
+    ``position`` (R, 2) and ``angle`` (R,) instead of random ones."""
+    return _place

@@ -1,0 +1,210 @@
+"""Gate escape rules, sensors and results against hand-computed numbers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from sdbc_sim.engine import TrialStepper
+from sdbc_sim.tasks import make_task
+from sdbc_sim.tasks.gate_escape import GateEscape, GateEscapeConfig
+
+PARKED = [[150.0, 20.0], [150.0, 60.0], [150.0, 180.0]]
+"""Where the robots that stay still wait in the hand-written runs."""
+
+
+def drive(task: GateEscape, speeds: list[float], seed: int = 0):
+    """Runs one trial with constant outputs: robot i at speed ``speeds[i]``
+    (0 = the stop output), straight ahead. Returns the stepper and the task
+    states of every step."""
+    stepper = TrialStepper(task)
+    stepper.reset(seed)
+    out = np.zeros((len(speeds), 3))
+    out[:, 0] = speeds
+    out[:, 1] = 0.5
+    out[:, 2] = [0.0 if s > 0 else 1.0 for s in speeds]
+    states = []
+    while not stepper.done:
+        stepper.step(out)
+        states.append(stepper.state())
+    return stepper, states
+
+
+def expected_characterisation(xs0: np.ndarray, others: np.ndarray, length: int):
+    """Mean gate distance and dispersion of a run where robot 0 moves along
+    y = 100 with positions ``xs0`` per step and the others stay at ``others``."""
+    gate = np.array([0.0, 100.0])
+    gd = dispersion = 0.0
+    for x in xs0[:length]:
+        pos = np.vstack([[x, 100.0], others])
+        gd += np.linalg.norm(pos - gate, axis=1).mean()
+        dispersion += np.linalg.norm(pos - pos.mean(axis=0), axis=1).mean()
+    return gd / length / 200.0, dispersion / length / 100.0
+
+
+def test_robot_through_gate_escapes_and_gate_closes_75_steps_later(placed) -> None:
+    task = placed(GateEscape(), [[10.0, 100.0], *PARKED], [math.pi, 0.0, 0.0, 0.0])
+    stepper, states = drive(task, [1.0, 0.0, 0.0, 0.0])
+    # The move commanded at step k happens during step k + 1: x_k = 10 - (k - 1),
+    # so x_12 = -1 < 0 is the escape; the gate then closes at 12 + 75 = 87.
+    fitness, characterisation, length = stepper.result()
+    assert length == 87
+    assert fitness == pytest.approx((1 + 87 / 1000) / 5, abs=1e-15)
+    xs0 = np.concatenate([10.0 - np.arange(12), np.full(75, -1.0)])
+    gd, dispersion = expected_characterisation(xs0, np.array(PARKED), 87)
+    np.testing.assert_allclose(
+        characterisation, [0.25, 12 / 1000, gd, dispersion], rtol=0, atol=1e-12
+    )
+    agent = [s.groups[0] for s in states]
+    gate = [s.groups[1] for s in states]
+    assert [bool(a.present[0, 0]) for a in agent[10:12]] == [True, False]
+    assert [float(g.attributes[0, 0, 0]) for g in gate[10:12]] == [0.0, 1.0]
+    # Passing the gate: centre within one radius of the gate line.
+    assert [float(a.attributes[0, 0, 4]) for a in agent[6:11]] == [0, 0, 1, 1, 1]
+    assert agent[5].attributes[0, 0, 3] == pytest.approx(1.0, abs=1e-12)
+    assert all(s.active[0] for s in states)
+
+
+def test_trial_ends_when_no_robot_is_left_inside(placed) -> None:
+    start = [[10.0, 100.0], [20.0, 100.0], [30.0, 100.0], [40.0, 100.0]]
+    task = placed(GateEscape(), start, [math.pi] * 4)
+    stepper, states = drive(task, [1.0] * 4)
+    # Robot i escapes at step x0 + 2: 12, 22, 32, 42; following robots pass
+    # through the escaped ones, which no longer collide.
+    fitness, characterisation, length = stepper.result()
+    assert length == 42
+    assert fitness == pytest.approx((4 + 42 / 1000) / 5, abs=1e-15)
+    assert characterisation[0] == 1.0
+    assert characterisation[1] == pytest.approx(0.012, abs=1e-15)
+    sizes = [int(s.groups[0].present[0].sum()) for s in states]
+    assert sizes[10:12] == [4, 3] and sizes[20:22] == [3, 2] and sizes[-1] == 0
+
+
+def test_nobody_moves_until_max_steps(placed) -> None:
+    start = [[60.0, 100.0], *PARKED]
+    task = placed(make_task("gate_escape", max_steps=30), start, [0.0] * 4)
+    stepper, _ = drive(task, [0.0] * 4)
+    fitness, characterisation, length = stepper.result()
+    assert length == 30
+    assert fitness == pytest.approx((0 + 30 / 30) / 5, abs=1e-15)
+    gd, dispersion = expected_characterisation(np.full(30, 60.0), np.array(PARKED), 30)
+    np.testing.assert_allclose(characterisation, [0, 1, gd, dispersion], atol=1e-12)
+
+
+def test_mase_fitness_option(placed) -> None:
+    task = placed(
+        make_task("gate_escape", fitness="mase"),
+        [[10.0, 100.0], *PARKED],
+        [math.pi, 0.0, 0.0, 0.0],
+    )
+    stepper, _ = drive(task, [1.0, 0.0, 0.0, 0.0])
+    fitness, _, _ = stepper.result()
+    assert fitness == pytest.approx(0.8 * 1 / 4 + 0.2 * (1 - 12 / 1000), abs=1e-15)
+
+
+def test_gate_closing_steps_setting(placed) -> None:
+    task = placed(
+        make_task("gate_escape", gate_closing_steps=10),
+        [[10.0, 100.0], *PARKED],
+        [math.pi, 0.0, 0.0, 0.0],
+    )
+    stepper, _ = drive(task, [1.0, 0.0, 0.0, 0.0])
+    assert stepper.result()[2] == 22
+
+
+def test_sensors_by_hand(placed) -> None:
+    start = [[30.0, 100.0], [30.0, 120.0], [10.0, 100.0], [5.0, 150.0]]
+    task = placed(GateEscape(), start, [math.pi / 2, 0.0, 0.0, math.pi])
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    x = stepper.sensors()
+    assert x.shape == (4, 11)
+    # Robot 0 faces +y: gate 30 away on its left; robots 1 (ahead) and 2 (left)
+    # 15 away edge to edge; robot 3 out of range; no wall within ray reach.
+    np.testing.assert_allclose(
+        x[0], [0.2, 0.5, 1 / 3, 1, 1, 0.2, 0.2, 1, 1, 1, 1], atol=1e-12
+    )
+    # Robot 3 faces the left wall 5 away: rays at heading -+45 degrees start at
+    # its edge and cross x = 0 after 5 sqrt(2) - 2.5; the gate is 50.25 away.
+    ray = 2 * (5 * math.sqrt(2) - 2.5) / 5 - 1
+    np.testing.assert_allclose(x[3, [0, 1, 2]], [1, 0, -1], atol=1e-12)
+    np.testing.assert_allclose(x[3, 7:], [ray, ray, 1, 1], atol=1e-12)
+
+
+def test_random_starts_are_valid_rings() -> None:
+    task = GateEscape()
+    c = task.config
+    trials, position, angle = task.reset([np.random.default_rng(s) for s in range(200)])
+    rings = np.linalg.norm(position - task.gate_centre, axis=-1)
+    np.testing.assert_allclose(
+        rings, np.tile([49.375, 98.75, 148.125, 197.5], (200, 1))
+    )
+    r = c.robot_radius
+    assert np.all((position >= r) & (position <= c.arena_size - r))
+    assert np.all((angle >= -np.pi) & (angle < np.pi))
+    gaps = np.linalg.norm(position[:, :, None] - position[:, None], axis=-1)
+    assert np.all(gaps[:, ~np.eye(4, dtype=bool)] >= 2 * r)
+    assert not trials.escaped.any() and np.all(trials.open_step == -1)
+
+
+def test_same_seed_same_start() -> None:
+    task = GateEscape()
+    a = task.reset([np.random.default_rng(7)])
+    b = task.reset([np.random.default_rng(7)])
+    np.testing.assert_array_equal(a[1], b[1])
+    np.testing.assert_array_equal(a[2], b[2])
+
+
+def count_sdbc_features(task: GateEscape) -> int:
+    """Features per SPEC.md's rules, from the task description alone."""
+    groups = task.description.groups
+    n = 0
+    for i, g in enumerate(groups):
+        n += (g.max_size > g.min_size) + len(g.attributes)
+        n += (not g.is_static) and g.max_size > 1
+        n += sum(not (g.is_static and h.is_static) for h in groups[i + 1 :])
+    return n
+
+
+def test_description_gives_the_papers_21_dimensions() -> None:
+    task = GateEscape()
+    d = task.description
+    assert [g.name for g in d.groups] == ["Agent", "Gate", "Wall"]
+    assert d.group("Agent").attributes == (
+        "x",
+        "y",
+        "turning speed",
+        "linear speed",
+        "is passing gate",
+    )
+    assert count_sdbc_features(task) == 10
+    assert 2 * count_sdbc_features(task) + 1 == 21
+    assert task.genome_length == 108
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"robot_radius": -1.0}, "robot_radius must be positive"),
+        ({"arena_size": 100.0}, "too small for its robots"),
+        ({"gate_width": 4.0}, "gate_width"),
+        ({"max_speed": 3.0}, "pass through walls"),
+        ({"fitness": "best"}, "unknown fitness"),
+        ({"n_robots": 0}, "n_robots must be >= 1"),
+        ({"max_steps": 0}, "max_steps must be >= 1"),
+        ({"stop_threshold": float("nan")}, "stop_threshold"),
+    ],
+)
+def test_bad_settings_are_named(overrides: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        GateEscapeConfig(**overrides)
+
+
+def test_registry_names_unknown_tasks_and_settings() -> None:
+    with pytest.raises(ValueError, match="unknown task 'gate'.*gate_escape"):
+        make_task("gate")
+    with pytest.raises(ValueError, match="unknown settings \\['radius'\\]"):
+        make_task("gate_escape", radius=3.0)
+    with pytest.raises(ValueError, match="robot_radius must be positive"):
+        make_task("gate_escape", robot_radius=-2.5)
