@@ -186,9 +186,17 @@ class EvaluationConfig:
     reevaluation_trials: int = 50
     """Fresh trials in which each generation's best individual is re-evaluated for
     the reported curves; 0 disables re-evaluation."""
+    fitness_mean: str = "harmonic"
+    """How a controller's fitness sums up its trials: "harmonic" (the authors'
+    code; trials under 1e-4 count as 1e-4) or "arithmetic"."""
 
     def __post_init__(self) -> None:
         _check(self.trials >= 1, "evaluation.trials", "must be at least 1")
+        _check(
+            self.fitness_mean in ("harmonic", "arithmetic"),
+            "evaluation.fitness_mean",
+            "must be 'harmonic' or 'arithmetic'",
+        )
         _check(
             self.reevaluation_trials >= 0,
             "evaluation.reevaluation_trials",

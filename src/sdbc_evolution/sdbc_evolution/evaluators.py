@@ -1,0 +1,372 @@
+"""Evaluators: where a generation's trials run. Parallelism lives here and only here.
+
+Every evaluator takes genomes (G, W) and trial seeds (G, T) and returns an
+:class:`Evaluation`: per controller its fitness (the engine's aggregate over its
+trials), its task-specific characterisation and its raw SDBC vector (the mean over its
+trials of the per-trial vectors), plus the per-trial fitness. The batch is cut into
+chunks of whole controllers; every chunk is one ``run_batch`` call with an
+:class:`~sdbc_evolution.sdbc.characterisation.SdbcExtractor` observing it. Since the
+engine makes a trial's result depend only on (task settings, genome, seed), chunking
+and the number of workers cannot change the results, so every evaluator returns the
+same arrays to the bit.
+
+- :class:`LocalEvaluator`: this machine. One worker runs in process; more run a
+  process pool (default: every core), one chunk per worker.
+- :class:`DaskEvaluator`: a Dask cluster, for users who outgrow one machine; the
+  scheduler's address as ``tcp://host:port``. Its workers need this package
+  importable.
+
+Workers build the task themselves from a :class:`TaskSpec` (name + overrides), once
+per process, so nothing heavier than genomes and seeds crosses process boundaries.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from typing import Any
+
+import numpy as np
+
+DEFAULT_CONNECT_TIMEOUT = 10.0
+"""Seconds to wait for a Dask scheduler before giving up."""
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """What a worker needs to evaluate: the task's registry name and overrides,
+    and how trials sum up into a controller's fitness.
+
+    Attributes:
+        name: Task name in the ``sdbc_sim.tasks`` registry.
+        overrides: Settings that differ from the task's defaults.
+        fitness_mean: "harmonic" or "arithmetic" (see ``sdbc_sim.engine.run_batch``).
+    """
+
+    name: str
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    fitness_mean: str = "harmonic"
+
+    def key(self) -> tuple[str, str]:
+        """A hashable identity of the task, for caching built tasks."""
+        return (self.name, repr(sorted(self.overrides.items())))
+
+    def build(self) -> Any:
+        """The task object (raises ValueError for an unknown name or bad settings)."""
+        from sdbc_sim.tasks import make_task
+
+        return make_task(self.name, **dict(self.overrides))
+
+
+@dataclass(frozen=True)
+class TaskInfo:
+    """What the GA needs to know about a task.
+
+    Attributes:
+        name: Task name.
+        genome_length: W, the number of network weights.
+        characterisation_size: C, length of the task-specific characterisation.
+        sdbc_names: Names of the D dimensions of the raw SDBC vector.
+    """
+
+    name: str
+    genome_length: int
+    characterisation_size: int
+    sdbc_names: tuple[str, ...]
+
+    @classmethod
+    def of(cls, spec: TaskSpec) -> TaskInfo:
+        """Builds the task once and reads its sizes."""
+        from sdbc_evolution.sdbc.characterisation import dimension_names
+
+        task = spec.build()
+        return cls(
+            name=spec.name,
+            genome_length=int(task.genome_length),
+            characterisation_size=int(task.characterisation_size),
+            sdbc_names=tuple(dimension_names(task.description)),
+        )
+
+
+@dataclass
+class Evaluation:
+    """The evaluation of G controllers in T trials each.
+
+    Attributes:
+        fitness: (G,) controller fitness (the engine's aggregate over trials).
+        trial_fitness: (G, T) fitness of every trial.
+        characterisation: (G, C) task-specific characterisation, mean over trials.
+        sdbc: (G, D) raw SDBC vector, mean over trials.
+    """
+
+    fitness: np.ndarray
+    trial_fitness: np.ndarray
+    characterisation: np.ndarray
+    sdbc: np.ndarray
+
+    @classmethod
+    def concatenate(cls, parts: list[Evaluation]) -> Evaluation:
+        """Joins the evaluations of consecutive chunks."""
+        return cls(
+            **{
+                name: np.concatenate([getattr(p, name) for p in parts])
+                for name in ("fitness", "trial_fitness", "characterisation", "sdbc")
+            }
+        )
+
+
+_TASKS: dict[tuple[str, str], Any] = {}
+
+
+def evaluate_chunk(
+    spec: TaskSpec, genomes: np.ndarray, seeds: np.ndarray
+) -> Evaluation:
+    """Runs one chunk of controllers through the engine (in whatever process).
+
+    Args:
+        spec: The task to build (cached per process).
+        genomes: (g, W) genomes.
+        seeds: (g, T) int64 trial seeds.
+    """
+    from sdbc_sim.engine import run_batch
+
+    from sdbc_evolution.sdbc.characterisation import SdbcExtractor
+
+    key = spec.key()
+    if key not in _TASKS:
+        _TASKS[key] = spec.build()
+    task = _TASKS[key]
+    extractor = SdbcExtractor(check_values=False)
+    result = run_batch(
+        task, genomes, seeds, observers=(extractor,), fitness_mean=spec.fitness_mean
+    )
+    g, t = seeds.shape
+    per_trial = extractor.characterisations().reshape(g, t, -1)
+    return Evaluation(
+        fitness=np.asarray(result.controller_fitness, dtype=np.float64),
+        trial_fitness=np.asarray(result.fitness, dtype=np.float64),
+        characterisation=np.asarray(
+            result.controller_characterisation, dtype=np.float64
+        ),
+        sdbc=per_trial.mean(axis=1),
+    )
+
+
+def chunk_bounds(n: int, chunks: int) -> list[tuple[int, int]]:
+    """Splits range(n) into at most ``chunks`` consecutive, nearly equal slices."""
+    chunks = max(1, min(chunks, n))
+    edges = [round(i * n / chunks) for i in range(chunks + 1)]
+    return [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+
+def _check_batch(
+    genomes: np.ndarray, seeds: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    genomes = np.asarray(genomes, dtype=np.float64)
+    seeds = np.asarray(seeds)
+    if genomes.ndim != 2 or seeds.ndim != 2 or seeds.shape[0] != genomes.shape[0]:
+        raise ValueError(
+            f"genomes (G, W) and seeds (G, T) disagree: {genomes.shape} and "
+            f"{seeds.shape}"
+        )
+    if seeds.dtype != np.int64:
+        raise ValueError(f"seeds must be int64, got {seeds.dtype}")
+    return genomes, seeds
+
+
+class Evaluator(ABC):
+    """Evaluates genomes in trials; every implementation gives the same results."""
+
+    spec: TaskSpec
+
+    @property
+    @abstractmethod
+    def workers(self) -> int:
+        """How many chunks a batch is cut into."""
+
+    @abstractmethod
+    def _run(
+        self, genomes: np.ndarray, seeds: np.ndarray, bounds: list[tuple[int, int]]
+    ) -> list[Evaluation]:
+        """Evaluates the chunks ``genomes[a:b]`` for (a, b) in ``bounds``, in order."""
+
+    def evaluate(self, genomes: np.ndarray, seeds: np.ndarray) -> Evaluation:
+        """Evaluates G genomes, genome g in the trials seeded by ``seeds[g]``.
+
+        Args:
+            genomes: (G, W) float64 genomes.
+            seeds: (G, T) int64 trial seeds.
+        """
+        genomes, seeds = _check_batch(genomes, seeds)
+        bounds = chunk_bounds(genomes.shape[0], self.workers)
+        return Evaluation.concatenate(self._run(genomes, seeds, bounds))
+
+    @abstractmethod
+    def close(self) -> None:
+        """Releases workers or connections."""
+
+    def __enter__(self) -> Evaluator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _limit_threads() -> None:
+    # One simulation process per core: BLAS threads would only oversubscribe.
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+
+
+class LocalEvaluator(Evaluator):
+    """Evaluates on this machine: in process with one worker, else a process pool.
+
+    Args:
+        spec: The task.
+        workers: Number of processes; None means every core (``os.cpu_count()``).
+    """
+
+    def __init__(self, spec: TaskSpec, workers: int | None = None) -> None:
+        if workers is None:
+            workers = os.cpu_count() or 1
+        if workers < 1:
+            raise ValueError(f"workers must be at least 1, got {workers}")
+        self.spec = spec
+        self._workers = workers
+        self._pool: ProcessPoolExecutor | None = None
+
+    @property
+    def workers(self) -> int:
+        return self._workers
+
+    def _run(
+        self, genomes: np.ndarray, seeds: np.ndarray, bounds: list[tuple[int, int]]
+    ) -> list[Evaluation]:
+        if self._workers == 1 or len(bounds) == 1:
+            return [
+                evaluate_chunk(self.spec, genomes[a:b], seeds[a:b]) for a, b in bounds
+            ]
+        if self._pool is None:
+            # forkserver: workers start clean, whatever threads this process has.
+            self._pool = ProcessPoolExecutor(
+                max_workers=self._workers,
+                mp_context=get_context("forkserver"),
+                initializer=_limit_threads,
+            )
+        futures = [
+            self._pool.submit(evaluate_chunk, self.spec, genomes[a:b], seeds[a:b])
+            for a, b in bounds
+        ]
+        return [f.result() for f in futures]
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+class SchedulerUnreachable(ConnectionError):
+    """No Dask scheduler answered at the given address in time."""
+
+
+def _probe_scheduler(address: str, timeout: float) -> None:
+    """Asks ``address`` who it is, giving up after ``timeout`` seconds.
+
+    Creating a ``distributed.Client`` against a dead address leaves a half-built
+    client whose clean-up blocks for twice the timeout; a bare handshake first fails
+    fast and cleanly, whatever answers (or not) at the address.
+    """
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def identity() -> Any:
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(identity(), timeout))
+    except Exception as error:  # refused, timed out, bad scheme, not Dask at all
+        if isinstance(error, MemoryError):
+            # dask read a non-Dask reply's first bytes as an absurd frame length.
+            detail = "something answered that does not speak the Dask protocol"
+        elif str(error):
+            detail = f"{type(error).__name__}: {error}"
+        else:
+            detail = type(error).__name__
+        raise SchedulerUnreachable(
+            f"no Dask scheduler answered at {address!r} within {timeout:g} s ({detail})"
+        ) from None
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise SchedulerUnreachable(
+            f"{address!r} answered, but not as a Dask scheduler: {str(reply)[:120]}"
+        )
+
+
+class DaskEvaluator(Evaluator):
+    """Evaluates on a Dask cluster.
+
+    Args:
+        spec: The task.
+        address: The scheduler, e.g. ``tcp://10.0.0.5:8786``.
+        timeout: Seconds to wait for the scheduler before raising
+            :class:`SchedulerUnreachable`.
+    """
+
+    def __init__(
+        self, spec: TaskSpec, address: str, timeout: float = DEFAULT_CONNECT_TIMEOUT
+    ) -> None:
+        from distributed import Client
+
+        if not (math.isfinite(timeout) and timeout > 0):
+            raise ValueError(f"timeout must be positive, got {timeout}")
+        self.spec = spec
+        self.address = address
+        _probe_scheduler(address, timeout)
+        self._client = Client(address, timeout=timeout, set_as_default=False)
+
+    @property
+    def workers(self) -> int:
+        threads = self._client.nthreads()
+        return max(1, sum(threads.values()))
+
+    def _run(
+        self, genomes: np.ndarray, seeds: np.ndarray, bounds: list[tuple[int, int]]
+    ) -> list[Evaluation]:
+        futures = [
+            self._client.submit(
+                evaluate_chunk, self.spec, genomes[a:b], seeds[a:b], pure=False
+            )
+            for a, b in bounds
+        ]
+        return self._client.gather(futures)
+
+    def close(self) -> None:
+        self._client.close()
+
+
+def make_evaluator(
+    spec: TaskSpec,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    timeout: float = DEFAULT_CONNECT_TIMEOUT,
+) -> Evaluator:
+    """The evaluator a user asked for: Dask if a scheduler is given, else local."""
+    if scheduler is not None:
+        if workers is not None:
+            raise ValueError(
+                "workers and scheduler exclude each other: the Dask "
+                "cluster decides its own workers"
+            )
+        return DaskEvaluator(spec, scheduler, timeout)
+    return LocalEvaluator(spec, workers)

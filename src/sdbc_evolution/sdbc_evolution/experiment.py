@@ -1,0 +1,354 @@
+"""The experiment runner: one evolutionary run, generation by generation, resumable.
+
+A generation g, in order (the order fixes the GA generator's draws, so it is part of
+the bit-identical resume contract):
+
+1. trial seeds: (N, T) int64 from the GA's generator, fresh every generation (elites
+   too: they are re-evaluated in new trials);
+2. evaluation of the population (any evaluator: same results);
+3. scoring by the treatment (``sdbc_evolution.treatments``): NS-SD+ weights, novelty
+   against population + archive, archive update, ranking order;
+4. breeding: the ``elites`` first individuals of the order are copied, the other
+   N - elites are bounded-Gaussian mutants of tournament winners;
+5. re-evaluation of the generation's best (highest fitness) in fresh trials whose
+   seeds come from a second generator, so turning re-evaluation on or off does not
+   change the run;
+6. outputs (``sdbc_evolution.results``), then the checkpoint (``checkpoint.npz``).
+
+The run's two generators are children of ``np.random.SeedSequence(seed)``. A run
+stopped anywhere and resumed from its checkpoint repeats nothing and skips nothing:
+outputs of a generation whose checkpoint was not written are dropped on resume and
+produced again, identically.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sdbc_evolution.archive import NoveltyArchive
+from sdbc_evolution.checkpoint import (
+    Checkpoint,
+    CheckpointError,
+    generator_from_state,
+    load_checkpoint,
+    save_checkpoint,
+)
+from sdbc_evolution.config import ExperimentConfig, dump_config
+from sdbc_evolution.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
+from sdbc_evolution.mutation import gaussian_mutation
+from sdbc_evolution.ranking import positions
+from sdbc_evolution.results import GenerationRecord, ResultsDirectory
+from sdbc_evolution.selection import elites, tournament_selection
+from sdbc_evolution.treatments import GenerationScores, score_generation
+
+TRIAL_SEED_BOUND = 2**63 - 1
+"""Trial seeds are drawn uniformly from [0, 2^63 - 1)."""
+
+
+class ExperimentError(RuntimeError):
+    """A run that cannot start or go on; the message says why."""
+
+
+def task_spec(config: ExperimentConfig) -> TaskSpec:
+    """What evaluators need to know of a configuration's task."""
+    return TaskSpec(
+        name=config.task,
+        overrides=dict(config.task_config),
+        fitness_mean=config.evaluation.fitness_mean,
+    )
+
+
+@dataclass
+class RunState:
+    """Everything that carries over from one generation to the next.
+
+    Attributes:
+        generation: Generations completed (the index of the next one).
+        population: (N, W) genomes of the next generation.
+        parent: (N,) index in the previous generation each came from (-1: none).
+        elite: (N,) bool: copied unchanged from the previous generation.
+        archive: The novelty archive.
+        weights: NS-SD+ weights in force, or None.
+        rng: The GA's generator.
+        reevaluation_rng: The generator of re-evaluation trial seeds.
+    """
+
+    generation: int
+    population: np.ndarray
+    parent: np.ndarray
+    elite: np.ndarray
+    archive: NoveltyArchive
+    weights: np.ndarray | None
+    rng: np.random.Generator
+    reevaluation_rng: np.random.Generator
+
+
+class Experiment:
+    """One run of one treatment on one task; use :meth:`create` or :meth:`resume`.
+
+    Args:
+        config: The resolved configuration.
+        evaluator: Where trials run.
+        info: The task's sizes and SDBC dimension names.
+        state: The state before the next generation.
+        results: The output directory.
+    """
+
+    def __init__(
+        self,
+        config: ExperimentConfig,
+        evaluator: Evaluator,
+        info: TaskInfo,
+        state: RunState,
+        results: ResultsDirectory,
+    ) -> None:
+        self.config = config
+        self.evaluator = evaluator
+        self.info = info
+        self.state = state
+        self.results = results
+
+    @property
+    def generations(self) -> int:
+        """Generations the run is configured to reach."""
+        return self.config.resolved_generations
+
+    @property
+    def finished(self) -> bool:
+        return self.state.generation >= self.generations
+
+    @classmethod
+    def create(
+        cls,
+        config: ExperimentConfig,
+        out_dir: str | Path,
+        evaluator: Evaluator,
+        info: TaskInfo | None = None,
+    ) -> Experiment:
+        """Starts a new run in ``out_dir``, which must not hold one already."""
+        config = config.resolved()
+        info = info or TaskInfo.of(task_spec(config))
+        results = ResultsDirectory(out_dir, info.sdbc_names)
+        if results.holds_a_run():
+            raise ExperimentError(
+                f"{results.path} already holds a run: resume it (--resume) or choose "
+                "another output directory"
+            )
+        root = np.random.SeedSequence(config.seed)
+        ga_seed, reevaluation_seed = root.spawn(2)
+        rng = np.random.default_rng(ga_seed)
+        n, ga = config.ga.population_size, config.ga
+        population = rng.uniform(ga.gene_min, ga.gene_max, (n, info.genome_length))
+        state = RunState(
+            generation=0,
+            population=population,
+            parent=np.full(n, -1, dtype=np.int64),
+            elite=np.zeros(n, dtype=bool),
+            archive=NoveltyArchive(
+                capacity=config.novelty.archive_size,
+                probability=config.novelty.archive_probability,
+            ),
+            weights=None,
+            rng=rng,
+            reevaluation_rng=np.random.default_rng(reevaluation_seed),
+        )
+        results.create(dump_config(config))
+        return cls(config, evaluator, info, state, results)
+
+    @classmethod
+    def resume(
+        cls,
+        config: ExperimentConfig,
+        out_dir: str | Path,
+        evaluator: Evaluator,
+        info: TaskInfo | None = None,
+    ) -> Experiment:
+        """Continues the run in ``out_dir`` from its checkpoint.
+
+        Raises:
+            CheckpointError: The checkpoint is missing, corrupt, or from another
+                task or configuration (``generations`` may change). Nothing in
+                ``out_dir`` is touched then.
+        """
+        config = config.resolved()
+        info = info or TaskInfo.of(task_spec(config))
+        results = ResultsDirectory(out_dir, info.sdbc_names)
+        checkpoint = load_checkpoint(results.checkpoint_path, config.to_dict())
+        n = config.ga.population_size
+        if checkpoint.population.shape != (n, info.genome_length):
+            raise CheckpointError(
+                f"checkpoint {results.checkpoint_path}: population of shape "
+                f"{checkpoint.population.shape}, this task and configuration need "
+                f"({n}, {info.genome_length})"
+            )
+        if checkpoint.generation > config.resolved_generations:
+            raise CheckpointError(
+                f"checkpoint {results.checkpoint_path} is after generation "
+                f"{checkpoint.generation}, beyond generations="
+                f"{config.resolved_generations}"
+            )
+        try:
+            results.truncate(checkpoint.generation)
+        except (OSError, ValueError) as error:
+            raise CheckpointError(f"cannot resume in {results.path}: {error}") from None
+        archive = NoveltyArchive(
+            capacity=config.novelty.archive_size,
+            probability=config.novelty.archive_probability,
+            behaviours=checkpoint.archive_behaviours,
+            fitness=checkpoint.archive_fitness,
+            generation=checkpoint.archive_generation,
+        )
+        state = RunState(
+            generation=checkpoint.generation,
+            population=checkpoint.population,
+            parent=checkpoint.parent.astype(np.int64),
+            elite=checkpoint.elite.astype(bool),
+            archive=archive,
+            weights=checkpoint.weights,
+            rng=generator_from_state(checkpoint.ga_rng),
+            reevaluation_rng=generator_from_state(checkpoint.reevaluation_rng),
+        )
+        results.write_config(dump_config(config))
+        return cls(config, evaluator, info, state, results)
+
+    def run(
+        self, on_generation: Callable[[GenerationRecord], None] | None = None
+    ) -> None:
+        """Runs generations until the configured number is reached."""
+        while not self.finished:
+            record = self.step()
+            if on_generation is not None:
+                on_generation(record)
+
+    def step(self) -> GenerationRecord:
+        """Runs one generation, writes its outputs and the checkpoint."""
+        config, state = self.config, self.state
+        start = time.perf_counter()
+        g = state.generation
+        population = state.population
+        n = population.shape[0]
+        seeds = state.rng.integers(
+            0, TRIAL_SEED_BOUND, size=(n, config.evaluation.trials), dtype=np.int64
+        )
+        evaluation_start = time.perf_counter()
+        evaluation = self.evaluator.evaluate(population, seeds)
+        evaluation_time = time.perf_counter() - evaluation_start
+        self._check_evaluation(evaluation, n)
+        scores = score_generation(
+            config.treatment,
+            evaluation,
+            state.archive,
+            state.weights,
+            g,
+            state.rng,
+            config.novelty,
+            config.characterisation,
+        )
+        children, parent, elite = self._breed(population, scores)
+        best = int(np.argmax(evaluation.fitness))
+        reevaluation_start = time.perf_counter()
+        reevaluated_fitness, reevaluated_mean = self._reevaluate(population[best])
+        evaluation_time += time.perf_counter() - reevaluation_start
+        record = GenerationRecord(
+            generation=g,
+            best_fitness=float(evaluation.fitness[best]),
+            mean_fitness=float(evaluation.fitness.mean()),
+            median_fitness=float(np.median(evaluation.fitness)),
+            best_index=best,
+            best_novelty=float(np.max(scores.novelty)),
+            archive_size=len(state.archive),
+            reevaluated_fitness=reevaluated_fitness,
+            reevaluated_mean=reevaluated_mean,
+            wall_time=time.perf_counter() - start,
+            evaluation_time=evaluation_time,
+            weights=scores.weights,
+        )
+        self.results.append_generation(
+            record, self._individuals(evaluation, scores), population[best]
+        )
+        state.generation = g + 1
+        state.population, state.parent, state.elite = children, parent, elite
+        state.weights = scores.weights
+        save_checkpoint(self.results.checkpoint_path, self._checkpoint())
+        return record
+
+    def _check_evaluation(self, evaluation: Evaluation, n: int) -> None:
+        d = len(self.info.sdbc_names)
+        if evaluation.fitness.shape != (n,) or evaluation.sdbc.shape != (n, d):
+            raise ExperimentError(
+                f"the evaluator returned fitness {evaluation.fitness.shape} and SDBC "
+                f"{evaluation.sdbc.shape} for {n} genomes and {d} SDBC dimensions"
+            )
+        if not np.isfinite(evaluation.fitness).all():
+            raise ExperimentError("the evaluator returned NaN or infinite fitness")
+
+    def _breed(
+        self, population: np.ndarray, scores: GenerationScores
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ga, rng = self.config.ga, self.state.rng
+        n = population.shape[0]
+        kept = elites(scores.order, ga.elites)
+        parents = tournament_selection(
+            positions(scores.order), n - ga.elites, ga.tournament_size, rng
+        )
+        mutants = gaussian_mutation(
+            population[parents],
+            rng,
+            sigma=ga.mutation_sigma,
+            probability=ga.mutation_probability,
+            low=ga.gene_min,
+            high=ga.gene_max,
+            max_redraws=ga.max_redraws,
+        )
+        children = np.concatenate([population[kept], mutants])
+        parent = np.concatenate([kept, parents])
+        elite = np.arange(n) < ga.elites
+        return children, parent, elite
+
+    def _reevaluate(self, genome: np.ndarray) -> tuple[float, float]:
+        trials = self.config.evaluation.reevaluation_trials
+        if trials == 0:
+            return float("nan"), float("nan")
+        seeds = self.state.reevaluation_rng.integers(
+            0, TRIAL_SEED_BOUND, size=(1, trials), dtype=np.int64
+        )
+        evaluation = self.evaluator.evaluate(genome[None], seeds)
+        return float(evaluation.fitness[0]), float(evaluation.trial_fitness[0].mean())
+
+    def _individuals(
+        self, evaluation: Evaluation, scores: GenerationScores
+    ) -> dict[str, np.ndarray]:
+        state = self.state
+        return {
+            "fitness": evaluation.fitness,
+            "trial_fitness": evaluation.trial_fitness,
+            "characterisation": evaluation.characterisation.astype(np.float32),
+            "sdbc": evaluation.sdbc.astype(np.float32),
+            "novelty": scores.novelty,
+            "front": scores.front.astype(np.int16),
+            "rank": positions(scores.order).astype(np.int32),
+            "archived": scores.archived,
+            "parent": state.parent.astype(np.int32),
+            "elite": state.elite,
+        }
+
+    def _checkpoint(self) -> Checkpoint:
+        state = self.state
+        return Checkpoint(
+            generation=state.generation,
+            config=self.config.to_dict(),
+            population=state.population,
+            parent=state.parent,
+            elite=state.elite,
+            archive_behaviours=state.archive.behaviours,
+            archive_fitness=state.archive.fitness,
+            archive_generation=state.archive.generation,
+            weights=state.weights,
+            ga_rng=state.rng.bit_generator.state,
+            reevaluation_rng=state.reevaluation_rng.bit_generator.state,
+        )

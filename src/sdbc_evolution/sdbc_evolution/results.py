@@ -1,0 +1,295 @@
+"""The output directory of an experiment: its layout, its writer and its readers.
+
+The replication study and the analysis read this layout; it is kept stable::
+
+    OUT/
+      config.yaml           the resolved ExperimentConfig (every default filled in)
+      generations.csv       one row per completed generation, columns below
+      best_genomes.npy      (G, W) float64, row g = the best genome of generation g
+                            (highest fitness, first index on ties)
+      individuals/
+        gen_00000.npz       every individual evaluated in generation 0, see below
+        gen_00001.npz       ...
+      checkpoint.npz        everything needed to resume after the last generation
+                            (see ``sdbc_evolution.checkpoint``)
+
+``generations.csv`` columns, in order:
+
+- ``generation``: 0-based index;
+- ``best_fitness``, ``mean_fitness``, ``median_fitness``: over the population;
+- ``best_index``: the best individual's index in the generation;
+- ``best_novelty``: the highest novelty score (empty for Fit);
+- ``archive_size``: archive entries after this generation;
+- ``reevaluated_fitness``: the best individual's fitness over
+  ``evaluation.reevaluation_trials`` fresh trials, summed up like every fitness
+  (harmonic mean by default); ``reevaluated_mean``: the arithmetic mean of those
+  trials (both empty when re-evaluation is off) - the paper's curves;
+- ``wall_time``: seconds the generation took, all included;
+  ``evaluation_time``: seconds of it spent in the evaluator (simulation and SDBC
+  extraction, in whatever processes);
+- ``weight:<dimension name>``, one per SDBC dimension: the NS-SD+ weights in force
+  (delta + mutual information in bits; empty for the other treatments).
+
+Floats are written with Python's ``repr`` (shortest exact round trip).
+
+``individuals/gen_NNNNN.npz`` arrays, one row per individual in population order:
+
+- ``fitness`` (N,) float64 and ``trial_fitness`` (N, T) float64;
+- ``characterisation`` (N, C) float32: the task-specific characterisation;
+- ``sdbc`` (N, D) float32: the raw (unstandardised) SDBC vector, mean over trials;
+- ``sdbc_names`` (D,) str: the SDBC dimension names;
+- ``novelty`` (N,) float64 (NaN for Fit); ``front`` (N,) int16; ``rank`` (N,) int32
+  (position in the ranking order, 0 = best); ``archived`` (N,) bool;
+- ``parent`` (N,) int32: index in the previous generation of the individual it was
+  copied or mutated from (-1 in generation 0); ``elite`` (N,) bool: copied unchanged.
+
+Float32 keeps a 750-generation run at population 200 near 15 MB; the analysis needs
+no more precision than that, and the checkpoint keeps exact values for resuming.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+CONFIG_FILE = "config.yaml"
+GENERATIONS_FILE = "generations.csv"
+BEST_GENOMES_FILE = "best_genomes.npy"
+INDIVIDUALS_DIR = "individuals"
+CHECKPOINT_FILE = "checkpoint.npz"
+WEIGHT_PREFIX = "weight:"
+
+BASE_COLUMNS = (
+    "generation",
+    "best_fitness",
+    "mean_fitness",
+    "median_fitness",
+    "best_index",
+    "best_novelty",
+    "archive_size",
+    "reevaluated_fitness",
+    "reevaluated_mean",
+    "wall_time",
+    "evaluation_time",
+)
+TIME_COLUMNS = ("wall_time", "evaluation_time")
+"""Columns that differ between two otherwise identical runs."""
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Writes ``data`` to ``path`` through a temporary file and a rename, so a
+    reader (or a crash) never sees half a file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def npz_bytes(arrays: dict[str, np.ndarray], compress: bool = True) -> bytes:
+    """The bytes of an ``.npz`` archive holding ``arrays``."""
+    buffer = io.BytesIO()
+    (np.savez_compressed if compress else np.savez)(buffer, **arrays)
+    return buffer.getvalue()
+
+
+@dataclass
+class GenerationRecord:
+    """One row of ``generations.csv``; see the module docstring for the fields."""
+
+    generation: int
+    best_fitness: float
+    mean_fitness: float
+    median_fitness: float
+    best_index: int
+    best_novelty: float
+    archive_size: int
+    reevaluated_fitness: float
+    reevaluated_mean: float
+    wall_time: float
+    evaluation_time: float
+    weights: np.ndarray | None
+
+    def row(self, n_weights: int) -> list[str]:
+        """CSV cells; NaN becomes an empty cell."""
+        values: list[float | int] = [getattr(self, c) for c in BASE_COLUMNS]
+        weights = (
+            self.weights if self.weights is not None else np.full(n_weights, np.nan)
+        )
+        values += [float(w) for w in weights]
+        return [_cell(v) for v in values]
+
+
+def _cell(value: float | int) -> str:
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    value = float(value)
+    return "" if math.isnan(value) else repr(value)
+
+
+class ResultsDirectory:
+    """Reads and writes one experiment's output directory.
+
+    Args:
+        path: The directory.
+        sdbc_names: Names of the SDBC dimensions (the weight columns).
+    """
+
+    def __init__(self, path: str | Path, sdbc_names: tuple[str, ...]) -> None:
+        self.path = Path(path)
+        self.sdbc_names = tuple(sdbc_names)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """Header of ``generations.csv``."""
+        return BASE_COLUMNS + tuple(WEIGHT_PREFIX + n for n in self.sdbc_names)
+
+    @property
+    def checkpoint_path(self) -> Path:
+        return self.path / CHECKPOINT_FILE
+
+    def individuals_path(self, generation: int) -> Path:
+        return self.path / INDIVIDUALS_DIR / f"gen_{generation:05d}.npz"
+
+    def holds_a_run(self) -> bool:
+        """True if the directory already holds results of some run."""
+        names = (CONFIG_FILE, GENERATIONS_FILE, BEST_GENOMES_FILE, CHECKPOINT_FILE)
+        return any((self.path / n).exists() for n in names) or (
+            (self.path / INDIVIDUALS_DIR).is_dir()
+            and any((self.path / INDIVIDUALS_DIR).iterdir())
+        )
+
+    def create(self, config_yaml: str) -> None:
+        """Prepares an empty directory for a new run."""
+        (self.path / INDIVIDUALS_DIR).mkdir(parents=True, exist_ok=True)
+        atomic_write_bytes(self.path / CONFIG_FILE, config_yaml.encode())
+        self._write_rows([])
+        atomic_write_bytes(self.path / BEST_GENOMES_FILE, _npy_bytes(np.zeros((0, 0))))
+
+    def write_config(self, config_yaml: str) -> None:
+        atomic_write_bytes(self.path / CONFIG_FILE, config_yaml.encode())
+
+    def append_generation(
+        self,
+        record: GenerationRecord,
+        individuals: dict[str, np.ndarray],
+        best_genome: np.ndarray,
+    ) -> None:
+        """Writes one generation's outputs (the checkpoint comes after)."""
+        atomic_write_bytes(
+            self.individuals_path(record.generation),
+            npz_bytes({**individuals, "sdbc_names": np.array(self.sdbc_names)}),
+        )
+        with open(self.path / GENERATIONS_FILE, "a", newline="") as f:
+            csv.writer(f).writerow(record.row(len(self.sdbc_names)))
+            f.flush()
+            os.fsync(f.fileno())
+        best = self.best_genomes()
+        if best.size == 0:
+            best = np.zeros((0, best_genome.shape[0]))
+        if best.shape[0] != record.generation:
+            raise RuntimeError(
+                f"{BEST_GENOMES_FILE} holds {best.shape[0]} rows before generation "
+                f"{record.generation}"
+            )
+        atomic_write_bytes(
+            self.path / BEST_GENOMES_FILE,
+            _npy_bytes(np.concatenate([best, best_genome[None]])),
+        )
+
+    def truncate(self, generations: int) -> None:
+        """Drops every output of generation ``generations`` and later (left by a run
+        stopped between writing a generation and its checkpoint)."""
+        rows = self.read_rows()
+        if len(rows) < generations:
+            raise ValueError(
+                f"{self.path / GENERATIONS_FILE} has {len(rows)} generations, the "
+                f"checkpoint {generations}: the directory is incomplete"
+            )
+        self._write_rows(rows[:generations])
+        best = self.best_genomes()
+        if best.shape[0] < generations:
+            raise ValueError(
+                f"{self.path / BEST_GENOMES_FILE} has {best.shape[0]} rows, the "
+                f"checkpoint {generations} generations: the directory is incomplete"
+            )
+        atomic_write_bytes(
+            self.path / BEST_GENOMES_FILE, _npy_bytes(best[:generations])
+        )
+        for path in sorted((self.path / INDIVIDUALS_DIR).glob("gen_*.npz")):
+            if int(path.stem.split("_")[1]) >= generations:
+                path.unlink()
+
+    def read_rows(self) -> list[list[str]]:
+        """Data rows of ``generations.csv`` as strings (the header checked)."""
+        with open(self.path / GENERATIONS_FILE, newline="") as f:
+            rows = list(csv.reader(f))
+        if not rows or tuple(rows[0]) != self.columns:
+            raise ValueError(
+                f"{self.path / GENERATIONS_FILE}: header does not match this run"
+            )
+        return rows[1:]
+
+    def best_genomes(self) -> np.ndarray:
+        return np.load(self.path / BEST_GENOMES_FILE)
+
+    def _write_rows(self, rows: list[list[str]]) -> None:
+        buffer = io.StringIO()
+        writer = csv.writer(buffer)
+        writer.writerow(self.columns)
+        writer.writerows(rows)
+        atomic_write_bytes(self.path / GENERATIONS_FILE, buffer.getvalue().encode())
+
+
+def _npy_bytes(array: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    np.save(buffer, array)
+    return buffer.getvalue()
+
+
+def read_generations(path: str | Path) -> dict[str, np.ndarray]:
+    """``generations.csv`` of a run as columns of floats (empty cells are NaN)."""
+    with open(Path(path) / GENERATIONS_FILE, newline="") as f:
+        rows = list(csv.reader(f))
+    header, data = rows[0], rows[1:]
+    return {
+        name: np.array([float(r[i]) if r[i] else np.nan for r in data])
+        for i, name in enumerate(header)
+    }
+
+
+def read_individuals(path: str | Path) -> dict[str, np.ndarray]:
+    """Every individual of a run, generations stacked (N x G rows), with a
+    ``generation`` column added."""
+    files = sorted((Path(path) / INDIVIDUALS_DIR).glob("gen_*.npz"))
+    if not files:
+        raise FileNotFoundError(f"no individuals in {Path(path) / INDIVIDUALS_DIR}")
+    parts: dict[str, list[np.ndarray]] = {}
+    names: np.ndarray | None = None
+    for file in files:
+        with np.load(file) as data:
+            generation = int(file.stem.split("_")[1])
+            n = data["fitness"].shape[0]
+            for key in data.files:
+                if key == "sdbc_names":
+                    names = data[key]
+                    continue
+                parts.setdefault(key, []).append(data[key])
+            parts.setdefault("generation", []).append(np.full(n, generation))
+    out = {key: np.concatenate(values) for key, values in parts.items()}
+    if names is not None:
+        out["sdbc_names"] = names
+    return out

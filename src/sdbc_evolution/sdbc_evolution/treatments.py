@@ -1,0 +1,150 @@
+"""The four treatments: how a generation's evaluation becomes a ranking order.
+
+- **Fit**: order by fitness alone; no novelty, no archive.
+- **NS-TS**: novelty on the task-specific characterisation (each value already in
+  [0, 1], used as it is, as in the authors' code).
+- **NS-SD**: novelty on the SDBC, z-scored against population + archive and clipped
+  to +-clip (unweighted).
+- **NS-SD+**: as NS-SD, each dimension k multiplied by w_k = delta + I(F; k), the
+  mutual information between that raw feature and fitness in the current
+  population, recomputed every ``weight_interval`` generations.
+
+Every novelty treatment then scores novelty against population + archive (k nearest
+neighbours), offers the generation to the archive (raw vectors), and ranks on
+(fitness, novelty) by non-dominated front and crowding distance (NSGA-II).
+
+One generation, in the order the GA's generator is used (the order is part of the
+bit-identical resume contract): [NS-SD+ on a weight generation: one integer seeds
+the k-means of the fitness discretisation], then the archive's draws.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sdbc_evolution.archive import NoveltyArchive
+from sdbc_evolution.config import CharacterisationConfig, NoveltyConfig, Treatment
+from sdbc_evolution.evaluators import Evaluation
+from sdbc_evolution.novelty import novelty_scores
+from sdbc_evolution.ranking import nsga2_order
+from sdbc_evolution.selection import fitness_order
+
+SEED_BOUND = 2**31 - 1
+"""Seeds handed to scikit-learn must fit a 32-bit signed integer."""
+
+
+@dataclass
+class GenerationScores:
+    """How a treatment scored one generation.
+
+    Attributes:
+        order: (N,) individual indices, best first; selection reads only this.
+        novelty: (N,) novelty scores; NaN for Fit.
+        front: (N,) non-dominated front of each individual; 0 for Fit.
+        weights: (D,) the SDBC weights in force (NS-SD+); None otherwise.
+        archived: (N,) bool, which individuals entered the archive.
+    """
+
+    order: np.ndarray
+    novelty: np.ndarray
+    front: np.ndarray
+    weights: np.ndarray | None
+    archived: np.ndarray
+
+
+def behaviour_vectors(
+    treatment: Treatment, evaluation: Evaluation
+) -> np.ndarray | None:
+    """The raw behaviour vectors a treatment compares (None for Fit)."""
+    if treatment is Treatment.FIT:
+        return None
+    if treatment is Treatment.NS_TS:
+        return evaluation.characterisation
+    return evaluation.sdbc
+
+
+def score_generation(
+    treatment: Treatment,
+    evaluation: Evaluation,
+    archive: NoveltyArchive,
+    weights: np.ndarray | None,
+    generation: int,
+    rng: np.random.Generator,
+    novelty: NoveltyConfig,
+    characterisation: CharacterisationConfig,
+) -> GenerationScores:
+    """Scores and ranks one evaluated generation, updating the archive.
+
+    Args:
+        treatment: Which treatment.
+        evaluation: The generation's evaluation.
+        archive: The novelty archive (changed in place).
+        weights: NS-SD+ weights in force from an earlier generation, or None.
+        generation: Index of this generation (0-based).
+        rng: The GA's generator.
+        novelty: Novelty settings.
+        characterisation: Standardisation and weighting settings.
+    """
+    fitness = evaluation.fitness
+    n = fitness.shape[0]
+    raw = behaviour_vectors(treatment, evaluation)
+    if raw is None:
+        return GenerationScores(
+            order=fitness_order(fitness),
+            novelty=np.full(n, np.nan),
+            front=np.zeros(n, dtype=np.int64),
+            weights=None,
+            archived=np.zeros(n, dtype=bool),
+        )
+    if treatment is Treatment.NS_TS:
+        population, archived_vectors = raw, archive.behaviours
+    else:
+        from sdbc_evolution.sdbc.standardise import standardise
+
+        population, archived_vectors = standardise(
+            raw,
+            archive.behaviours.reshape(-1, raw.shape[1]),
+            clip=characterisation.clip,
+        )
+    if treatment is Treatment.NS_SD_PLUS:
+        if weights is None or generation % characterisation.weight_interval == 0:
+            weights = sdbc_weights(raw, fitness, characterisation, rng)
+        population = population * weights
+        archived_vectors = archived_vectors * weights
+    else:
+        weights = None
+    scores = novelty_scores(population, archived_vectors, novelty.k)
+    archived = archive.offer(raw, fitness, generation, rng)
+    order, front, _ = nsga2_order(
+        np.column_stack([fitness, scores]), tie_break=novelty.tie_break
+    )
+    return GenerationScores(
+        order=order, novelty=scores, front=front, weights=weights, archived=archived
+    )
+
+
+def sdbc_weights(
+    raw: np.ndarray,
+    fitness: np.ndarray,
+    characterisation: CharacterisationConfig,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """NS-SD+ weights w_k = delta + I(F; k) on the current population.
+
+    Draws one integer from ``rng`` to seed the k-means that discretises fitness.
+    """
+    from sdbc_evolution.sdbc.weighting import mutual_information_weights
+
+    seed = int(rng.integers(SEED_BOUND))
+    return np.asarray(
+        mutual_information_weights(
+            raw,
+            fitness,
+            delta=characterisation.delta,
+            fitness_clusters=characterisation.fitness_clusters,
+            random_state=seed,
+        ),
+        dtype=np.float64,
+    )

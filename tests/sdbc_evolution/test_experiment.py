@@ -1,0 +1,261 @@
+"""The experiment runner on a fast stand-in evaluator: layout, elitism, resume, bad
+checkpoints. (Runs on the real engine are in test_experiment_engine.py.)"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import TOY_INFO, ToyEvaluator
+from sdbc_evolution.checkpoint import CheckpointError
+from sdbc_evolution.config import Treatment, config_from_dict
+from sdbc_evolution.experiment import Experiment, ExperimentError
+from sdbc_evolution.results import (
+    TIME_COLUMNS,
+    read_generations,
+    read_individuals,
+)
+
+from sdbc_evolution import checkpoint as checkpoint_module
+
+TREATMENTS = [t.value for t in Treatment]
+
+
+def small_config(treatment: str = "ns-ts", generations: int = 5, **sections):
+    data = {
+        "task": "toy",
+        "treatment": treatment,
+        "generations": generations,
+        "seed": 11,
+        "ga": {
+            "population_size": 12,
+            "tournament_size": 3,
+            "elites": 2,
+            "mutation_probability": 0.3,
+        },
+        "novelty": {"k": 4, "archive_probability": 0.3, "archive_size": 5},
+        "evaluation": {"trials": 3, "reevaluation_trials": 4},
+    }
+    for key, value in sections.items():
+        data[key] = {**data.get(key, {}), **value}
+    return config_from_dict(data)
+
+
+def run(config, out: Path, workers: int = 2) -> Experiment:
+    experiment = Experiment.create(config, out, ToyEvaluator(workers), TOY_INFO)
+    experiment.run()
+    return experiment
+
+
+def resume(config, out: Path, workers: int = 2) -> Experiment:
+    experiment = Experiment.resume(config, out, ToyEvaluator(workers), TOY_INFO)
+    experiment.run()
+    return experiment
+
+
+def snapshot(out: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(out)): p.read_bytes()
+        for p in sorted(out.rglob("*"))
+        if p.is_file()
+    }
+
+
+def assert_same_run(a: Path, b: Path) -> None:
+    """Identical outputs, wall-clock columns aside."""
+    ga, gb = read_generations(a), read_generations(b)
+    assert ga.keys() == gb.keys()
+    for column in ga:
+        if column not in TIME_COLUMNS:
+            np.testing.assert_array_equal(ga[column], gb[column], err_msg=column)
+    np.testing.assert_array_equal(
+        np.load(a / "best_genomes.npy"), np.load(b / "best_genomes.npy")
+    )
+    ia, ib = read_individuals(a), read_individuals(b)
+    assert ia.keys() == ib.keys()
+    for key in ia:
+        np.testing.assert_array_equal(ia[key], ib[key], err_msg=key)
+    with np.load(a / "checkpoint.npz") as ca, np.load(b / "checkpoint.npz") as cb:
+        assert ca.files == cb.files
+        for key in ca.files:
+            np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)
+
+
+@pytest.mark.parametrize("treatment", ["fit", "ns-ts"])
+def test_a_run_writes_the_documented_layout(tmp_path: Path, treatment: str) -> None:
+    config = small_config(treatment)
+    run(config, tmp_path)
+    with open(tmp_path / "generations.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    assert rows[0][:3] == ["generation", "best_fitness", "mean_fitness"]
+    assert rows[0][-5:] == [f"weight:Toy feature {i}" for i in range(5)]
+    assert [r[0] for r in rows[1:]] == ["0", "1", "2", "3", "4"]
+    generations = read_generations(tmp_path)
+    assert np.isnan(generations["weight:Toy feature 0"]).all()
+    assert (generations["reevaluated_fitness"] > 0).all()
+    assert np.isnan(generations["best_novelty"]).all() == (treatment == "fit")
+    archive_sizes = generations["archive_size"]
+    assert (archive_sizes <= 5).all() and (np.diff(archive_sizes) >= 0).all()
+    if treatment == "fit":
+        assert (archive_sizes == 0).all()
+    assert np.load(tmp_path / "best_genomes.npy").shape == (5, 6)
+    individuals = read_individuals(tmp_path)
+    assert individuals["sdbc"].shape == (60, 5)
+    assert individuals["characterisation"].shape == (60, 3)
+    assert individuals["trial_fitness"].shape == (60, 3)
+    assert individuals["generation"].tolist() == [
+        g for g in range(5) for _ in range(12)
+    ]
+    assert (tmp_path / "config.yaml").read_text().startswith("task: toy")
+
+
+def test_elites_are_the_head_of_the_previous_order(tmp_path: Path) -> None:
+    run(small_config("ns-ts"), tmp_path)
+    ind = read_individuals(tmp_path)
+    best = np.load(tmp_path / "best_genomes.npy")
+    for g in range(1, 5):
+        now = ind["generation"] == g
+        before = ind["generation"] == g - 1
+        assert ind["elite"][now].tolist() == [True, True] + [False] * 10
+        ranks_before = ind["rank"][before]
+        # The two elites come from ranks 0 and 1 of the previous generation...
+        assert ranks_before[ind["parent"][now][:2]].tolist() == [0, 1]
+        # ...the other parents were tournament winners (any rank but rarely the worst).
+        assert ((ind["parent"][now] >= 0) & (ind["parent"][now] < 12)).all()
+    assert best.shape == (5, 6)
+
+
+def test_fit_keeps_the_fittest_genome(tmp_path: Path) -> None:
+    experiment = run(small_config("fit"), tmp_path)
+    best = np.load(tmp_path / "best_genomes.npy")
+    # Under Fit the order is fitness: the best genome of the last generation is the
+    # first elite of the next population.
+    np.testing.assert_array_equal(experiment.state.population[0], best[-1])
+
+
+def test_fitness_improves_on_the_toy_problem(tmp_path: Path) -> None:
+    config = small_config(
+        "fit", generations=25, ga={"population_size": 20, "mutation_sigma": 0.2}
+    )
+    run(config, tmp_path)
+    g = read_generations(tmp_path)
+    assert g["best_fitness"][-5:].mean() > 1.5 * g["best_fitness"][0]
+
+
+@pytest.mark.parametrize("treatment", ["fit", "ns-ts"])
+def test_resume_is_bit_identical(tmp_path: Path, treatment: str) -> None:
+    run(small_config(treatment, generations=5), tmp_path / "straight")
+    run(small_config(treatment, generations=2), tmp_path / "resumed")
+    resume(small_config(treatment, generations=5), tmp_path / "resumed", workers=3)
+    assert_same_run(tmp_path / "straight", tmp_path / "resumed")
+
+
+def test_resume_after_a_crash_between_outputs_and_checkpoint(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    config = small_config("ns-ts", generations=5)
+    run(config, tmp_path / "straight")
+    real_save = checkpoint_module.save_checkpoint
+
+    def crash_at_3(path, checkpoint):
+        if checkpoint.generation == 3:
+            raise KeyboardInterrupt
+        real_save(path, checkpoint)
+
+    monkeypatch.setattr("sdbc_evolution.experiment.save_checkpoint", crash_at_3)
+    with pytest.raises(KeyboardInterrupt):
+        run(config, tmp_path / "crashed")
+    # Generation 2's outputs were written but its checkpoint was not.
+    assert len(read_generations(tmp_path / "crashed")["generation"]) == 3
+    monkeypatch.setattr("sdbc_evolution.experiment.save_checkpoint", real_save)
+    resume(config, tmp_path / "crashed")
+    assert_same_run(tmp_path / "straight", tmp_path / "crashed")
+
+
+def test_chunking_does_not_change_a_run(tmp_path: Path) -> None:
+    run(small_config("ns-ts"), tmp_path / "one", workers=1)
+    run(small_config("ns-ts"), tmp_path / "five", workers=5)
+    assert_same_run(tmp_path / "one", tmp_path / "five")
+
+
+def test_an_existing_run_is_not_overwritten(tmp_path: Path) -> None:
+    run(small_config(generations=2), tmp_path)
+    before = snapshot(tmp_path)
+    with pytest.raises(ExperimentError, match="already holds a run"):
+        Experiment.create(small_config(), tmp_path, ToyEvaluator(), TOY_INFO)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            {"ga": {"population_size": 14}},
+            r"ga\.population_size: 12 in the checkpoint, 14",
+        ),
+        ({"seed": 12}, r"seed: 11 in the checkpoint, 12 now"),
+        ({"treatment": "fit"}, r"treatment: 'ns-ts' in the checkpoint, 'fit' now"),
+        ({"task": "other"}, r"from task 'toy', this run is task 'other'"),
+    ],
+)
+def test_a_checkpoint_of_another_configuration_is_refused(
+    tmp_path: Path, change: dict, message: str
+) -> None:
+    run(small_config(generations=2), tmp_path)
+    before = snapshot(tmp_path)
+    data = small_config(generations=4).to_dict()
+    for key, value in change.items():
+        data[key] = {**data[key], **value} if isinstance(value, dict) else value
+    with pytest.raises(CheckpointError, match=message):
+        Experiment.resume(config_from_dict(data), tmp_path, ToyEvaluator(), TOY_INFO)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "empty", "missing"])
+def test_a_corrupt_checkpoint_is_refused_and_nothing_changes(
+    tmp_path: Path, damage: str
+) -> None:
+    run(small_config(generations=2), tmp_path)
+    path = tmp_path / "checkpoint.npz"
+    data = path.read_bytes()
+    if damage == "truncate":
+        path.write_bytes(data[: len(data) // 2])
+    elif damage == "garbage":
+        path.write_bytes(bytes(range(256)) * 4)
+    elif damage == "empty":
+        path.write_bytes(b"")
+    else:
+        path.unlink()
+    before = snapshot(tmp_path)
+    expected = "no checkpoint" if damage == "missing" else "corrupt checkpoint"
+    with pytest.raises(CheckpointError, match=expected):
+        Experiment.resume(
+            small_config(generations=4), tmp_path, ToyEvaluator(), TOY_INFO
+        )
+    assert snapshot(tmp_path) == before
+
+
+def test_a_checkpoint_missing_an_array_is_corrupt(tmp_path: Path) -> None:
+    run(small_config(generations=2), tmp_path)
+    path = tmp_path / "checkpoint.npz"
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files if k != "archive_fitness"}
+    np.savez(path, **arrays)
+    with pytest.raises(CheckpointError, match=r"missing \['archive_fitness'\]"):
+        Experiment.resume(
+            small_config(generations=4), tmp_path, ToyEvaluator(), TOY_INFO
+        )
+
+
+def test_a_finished_run_extends_when_generations_grow(tmp_path: Path) -> None:
+    run(small_config(generations=3), tmp_path)
+    experiment = Experiment.resume(
+        small_config(generations=3), tmp_path, ToyEvaluator(), TOY_INFO
+    )
+    assert experiment.finished
+    with pytest.raises(CheckpointError, match="beyond generations=2"):
+        Experiment.resume(
+            small_config(generations=2), tmp_path, ToyEvaluator(), TOY_INFO
+        )
