@@ -1,0 +1,1 @@
+"""Systematically derived behaviour characterisations (SDBC, section 3 of the paper)."""

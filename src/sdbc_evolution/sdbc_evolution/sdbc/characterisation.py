@@ -1,0 +1,150 @@
+"""The SDBC extractor: an engine observer that turns task states into raw
+characterisations (steps 1 to 3 of the paper's workflow).
+
+Each step, :class:`StepFeatures` computes the behaviour features of every trial of the
+batch (eqs. 2 to 5) and a :class:`TrialAggregator` folds them into running sums,
+counts and last values. At the end, every trial has a raw characterisation of length
+``2 F + 1``, ``[means, finals, length]``, whose dimensions are named by
+:func:`dimension_names`: "Agent group size (M)", ..., "Gate is closing (F)", ...,
+"Simulation length".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sdbc_sim.task_state import TaskDescription, TaskState
+
+from sdbc_evolution.sdbc.aggregation import TrialAggregator
+from sdbc_evolution.sdbc.features import (
+    StepFeatures,
+    behaviour_features,
+    validate_task_state,
+)
+
+MEAN_SUFFIX = "(M)"
+"""Marks a feature's mean over the trial, as in the paper's Table 2."""
+FINAL_SUFFIX = "(F)"
+"""Marks a feature's final value, as in the paper's Table 2."""
+LENGTH_NAME = "Simulation length"
+"""The last dimension: the trial length in steps."""
+
+
+def dimension_names(description: TaskDescription) -> tuple[str, ...]:
+    """The human name of every dimension of a task's raw characterisation, in order."""
+    names = [f.name for f in behaviour_features(description)]
+    return (
+        *(f"{n} {MEAN_SUFFIX}" for n in names),
+        *(f"{n} {FINAL_SUFFIX}" for n in names),
+        LENGTH_NAME,
+    )
+
+
+class SdbcExtractor:
+    """Streams the task states of a batch into per-trial raw SDBC vectors.
+
+    It is an engine observer (:class:`sdbc_sim.observer.Observer`): the engine calls
+    :meth:`start` once per batch and :meth:`observe` after every step; then
+    :meth:`characterisations` gives the (B, D) raw vectors. It keeps O(B F) numbers,
+    never the trajectory, and can be reused for the next batch.
+
+    Args:
+        check_values: Check, every step, that no present entity of an active trial
+            has a NaN or infinite attribute or coordinate, and that every group's
+            size is within its limits; off saves a few numpy reductions per step.
+    """
+
+    def __init__(self, check_values: bool = True) -> None:
+        self.check_values = check_values
+        self._features: StepFeatures | None = None
+        self._aggregator: TrialAggregator | None = None
+        self._step = 0
+        self._previous_active: np.ndarray | None = None
+
+    def start(self, description: TaskDescription, n_trials: int) -> None:
+        """Prepares for a batch of ``n_trials`` trials of the described task."""
+        if n_trials < 1:
+            raise ValueError(f"SDBC extractor: n_trials {n_trials} < 1")
+        self._features = StepFeatures(description)
+        f = self._features.n_features
+        self._aggregator = TrialAggregator(n_trials, f)
+        self._total = np.empty((f, n_trials))
+        self._count = np.empty((f, n_trials))
+        self._step = 0
+        self._previous_active = np.ones(n_trials, dtype=bool)
+
+    @property
+    def description(self) -> TaskDescription:
+        """The task description of the current batch."""
+        return self._started().description
+
+    @property
+    def dimension_names(self) -> tuple[str, ...]:
+        """Names of the D dimensions of :meth:`characterisations`."""
+        return dimension_names(self.description)
+
+    def _started(self) -> StepFeatures:
+        if self._features is None:
+            raise RuntimeError("SDBC extractor: start() was not called")
+        return self._features
+
+    def observe(self, state: TaskState) -> None:
+        """Adds the step ``state.step`` of every active trial."""
+        features = self._started()
+        description = features.description
+        n_trials = self._aggregator.n_trials
+        validate_task_state(description, state, n_trials)
+        if state.step != self._step + 1:
+            raise ValueError(
+                f"SDBC extractor, task {description.name!r}: step {state.step} follows "
+                f"step {self._step}; steps must arrive in order from 1"
+            )
+        active = state.active
+        resumed = active & ~self._previous_active
+        if resumed.any():
+            raise ValueError(
+                f"SDBC extractor, task {description.name!r}, step {state.step}: trial "
+                f"{int(np.flatnonzero(resumed)[0])} is active again after it ended"
+            )
+        features.compute(state, self._total, self._count)
+        if self.check_values:
+            self._check(state)
+        self._aggregator.update_from_totals(self._total, self._count, active)
+        self._step = state.step
+        self._previous_active = active.copy()
+
+    def _check(self, state: TaskState) -> None:
+        description = self._features.description
+        active = state.active
+        bad = ~np.isfinite(self._total) & active
+        if bad.any():
+            f, trial = np.argwhere(bad)[0]
+            raise ValueError(
+                f"SDBC extractor, task {description.name!r}, step {state.step}, trial "
+                f"{trial}: feature {self._features.features[f].name!r} is not "
+                "finite; a present entity has a NaN or infinite attribute or coordinate"
+            )
+        for spec, group in zip(description.groups, state.groups, strict=True):
+            if spec.min_size == 0:
+                continue  # S = max_size slots: only the lower limit can be broken.
+            size = np.broadcast_to(
+                np.count_nonzero(group.present, axis=1), active.shape
+            )
+            out = (size < spec.min_size) & active
+            if out.any():
+                trial = int(np.flatnonzero(out)[0])
+                raise ValueError(
+                    f"SDBC extractor, task {description.name!r}, step {state.step}, "
+                    f"trial {trial}: group {spec.name!r} holds {int(size[trial])} "
+                    f"entities, outside its limits [{spec.min_size}, {spec.max_size}]"
+                )
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(B,) int: steps taken by each trial so far."""
+        self._started()
+        return self._aggregator.lengths
+
+    def characterisations(self) -> np.ndarray:
+        """(B, D) raw characterisations ``[means, finals, length]`` so far."""
+        self._started()
+        return self._aggregator.result()

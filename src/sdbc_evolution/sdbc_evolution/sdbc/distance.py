@@ -1,0 +1,285 @@
+"""The distance function f_D of the task state (eq. 1 of the paper), over a batch.
+
+f_D(e_i, e_j) estimates the physical distance between two entities from their shapes
+(:class:`sdbc_sim.task_state.Geometry`), edge to edge and floored at 0:
+
+- circle-circle: ``|c_i - c_j| - r_i - r_j``;
+- circle-point: ``|c_i - p_j| - r_i`` (a point is a circle of radius 0);
+- circle-polygon: ``min_s dist(c_i, s) - r_i`` over the polygon's segments s;
+- polygon-polygon: ``min_{s, s'} dist(s, s')``, 0 where two segments cross.
+
+Overlapping shapes are touching, hence 0, as in the authors' code (SPEC.md states the
+floor for circle-circle; it changes no other case for shapes that do not overlap).
+
+Layout: slot-major, batch last. A group's discs are ``(S, B|1)`` arrays of x, y and
+radius; its polygons are ``(P, S, B|1)`` arrays of segment end points. Every
+reduction (the least over a polygon's segments here, the means over entities and
+pairs in :mod:`features`) then runs over leading axes, which numpy does as whole-row
+operations, and no Python loop runs over trials or entities.
+
+Scratch arrays come from a :class:`Workspace` and are reused from step to step: at
+thousands of trials a temporary is hundreds of kilobytes, and allocating a fresh one
+for every operation costs more in page faults than the arithmetic (measured: about
+500 faults and 1 ms per step of 2000 gate escape trials without it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from dataclasses import dataclass
+
+import numpy as np
+from sdbc_sim.task_state import Geometry, GroupState
+
+
+class Workspace:
+    """Scratch arrays kept between steps, one per (key, shape, dtype)."""
+
+    def __init__(self) -> None:
+        self._arrays: dict[tuple, np.ndarray] = {}
+
+    def get(
+        self, key: Hashable, shape: tuple[int, ...], dtype: type = np.float64
+    ) -> np.ndarray:
+        """An uninitialised array for ``key``, the same one at every call with the
+        same key, shape and dtype."""
+        entry = (key, shape, dtype)
+        array = self._arrays.get(entry)
+        if array is None:
+            array = self._arrays[entry] = np.empty(shape, dtype)
+        return array
+
+
+@dataclass(frozen=True)
+class Discs:
+    """Circles and points of one group at one step (a point has radius 0).
+
+    Attributes:
+        x: (S, B|1) centre x, or the same with the slot axis indexed (see
+            :func:`pick` and :func:`expand`).
+        y: Centre y, shaped as ``x``.
+        r: Radius shaped as ``x``, or None for points.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    r: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Polygons of one group at one step, as chains of line segments a -> b.
+
+    Attributes:
+        ax: (P, S, B|1) x of every segment's first end point; the slot axes follow
+            the segment axis P.
+        ay: y of every segment's first end point, shaped as ``ax``.
+        bx: x of every segment's second end point, shaped as ``ax``.
+        by: y of every segment's second end point, shaped as ``ax``.
+    """
+
+    ax: np.ndarray
+    ay: np.ndarray
+    bx: np.ndarray
+    by: np.ndarray
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(ax, ay, bx, by)``."""
+        return self.ax, self.ay, self.bx, self.by
+
+
+Shapes = Discs | Segments
+"""The shapes of one group's entity slots at one step."""
+
+
+def group_shapes(
+    group: GroupState, geometry: Geometry, workspace: Workspace, key: Hashable
+) -> Shapes:
+    """A group's shapes, copied into the slot-major layout of this module.
+
+    Args:
+        group: One group of a task state (batch-first arrays).
+        geometry: The group's geometry, from its task description.
+        workspace: Where the copies live.
+        key: Names the group in ``workspace``.
+
+    Returns:
+        :class:`Discs` for circles and points, :class:`Segments` for polygons.
+    """
+    if geometry is Geometry.POLYGON:
+        # (B, S, P, 2 ends, 2 coordinates) -> (2, 2, P, S, B).
+        source = group.segments.transpose(3, 4, 2, 1, 0)
+        seg = workspace.get((key, "segments"), source.shape)
+        np.copyto(seg, source)
+        return Segments(ax=seg[0, 0], ay=seg[0, 1], bx=seg[1, 0], by=seg[1, 1])
+    source = group.centres.transpose(2, 1, 0)
+    centres = workspace.get((key, "centres"), source.shape)
+    np.copyto(centres, source)
+    radius = None
+    if geometry is Geometry.CIRCLE:
+        radius = workspace.get((key, "radii"), source.shape[1:])
+        np.copyto(radius, group.radii.T)
+    return Discs(x=centres[0], y=centres[1], r=radius)
+
+
+def pick(
+    shapes: Shapes, index: np.ndarray, workspace: Workspace, key: Hashable
+) -> Shapes:
+    """The shapes of the slots ``index`` (an int array), copied into ``workspace``."""
+
+    def take(array: np.ndarray, axis: int, part: str) -> np.ndarray:
+        shape = array.shape[:axis] + index.shape + array.shape[axis + 1 :]
+        out = workspace.get((key, part), shape)
+        return np.take(array, index, axis=axis, out=out)
+
+    if isinstance(shapes, Discs):
+        r = None if shapes.r is None else take(shapes.r, 0, "r")
+        return Discs(x=take(shapes.x, 0, "x"), y=take(shapes.y, 0, "y"), r=r)
+    return Segments(
+        *(
+            take(v, 1, part)
+            for v, part in zip(shapes.arrays(), ("ax", "ay", "bx", "by"), strict=True)
+        )
+    )
+
+
+def expand(shapes: Shapes, axis: int) -> Shapes:
+    """The shapes with a broadcast axis inserted at slot axis ``axis`` (a view)."""
+
+    def insert(array: np.ndarray, offset: int) -> np.ndarray:
+        return np.expand_dims(array, offset + axis)
+
+    if isinstance(shapes, Discs):
+        r = None if shapes.r is None else insert(shapes.r, 0)
+        return Discs(x=insert(shapes.x, 0), y=insert(shapes.y, 0), r=r)
+    return Segments(*(insert(v, 1) for v in shapes.arrays()))
+
+
+def point_segment_distance2(
+    px: np.ndarray,
+    py: np.ndarray,
+    segments: Segments,
+    workspace: Workspace | None = None,
+    key: Hashable = "point-segment",
+) -> np.ndarray:
+    """Squared Euclidean distance from points p to segments a-b, broadcasting.
+
+    The nearest point of a segment is ``a + t (b - a)`` with
+    ``t = clip(((p - a) . (b - a)) / |b - a|^2, 0, 1)``; a degenerate segment
+    (a = b) is its end point a (t = 0).
+
+    Args:
+        px: Point x, broadcasting against the segments' arrays.
+        py: Point y.
+        segments: The segments.
+        workspace: Scratch arrays (a fresh one if None); the result lives there.
+        key: Names this use in ``workspace``.
+    """
+    ws = workspace if workspace is not None else Workspace()
+    ax, ay, bx, by = segments.arrays()
+    abx = np.subtract(bx, ax, out=ws.get((key, "abx"), ax.shape))
+    aby = np.subtract(by, ay, out=ws.get((key, "aby"), ax.shape))
+    inverse = ws.get((key, "inverse"), ax.shape)
+    np.multiply(abx, abx, out=inverse)
+    inverse += aby * aby
+    np.divide(1.0, inverse, out=inverse, where=inverse > 0)
+    shape = np.broadcast_shapes(px.shape, ax.shape)
+    dx = np.subtract(px, ax, out=ws.get((key, "dx"), shape))
+    dy = np.subtract(py, ay, out=ws.get((key, "dy"), shape))
+    t = np.multiply(dx, abx, out=ws.get((key, "t"), shape))
+    tmp = np.multiply(dy, aby, out=ws.get((key, "tmp"), shape))
+    t += tmp
+    t *= inverse
+    np.clip(t, 0.0, 1.0, out=t)
+    dx -= np.multiply(t, abx, out=tmp)
+    dy -= np.multiply(t, aby, out=tmp)
+    dx *= dx
+    dy *= dy
+    dx += dy
+    return dx
+
+
+def _orientation(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+) -> np.ndarray:
+    """Sign of the turn a -> b -> c (cross product of b - a and c - a)."""
+    return np.sign((bx - ax) * (cy - ay) - (by - ay) * (cx - ax))
+
+
+def segment_segment_distance2(a: Segments, b: Segments) -> np.ndarray:
+    """Squared distance between segments a and b, broadcasting.
+
+    Segments that cross properly are at distance 0; otherwise the nearest pair of
+    points involves an end point, so the distance is the least of the four end
+    point-to-segment distances (collinear and touching cases give 0 through them).
+    Only moving polygons need this; it allocates its temporaries.
+    """
+    crossing = (
+        _orientation(a.ax, a.ay, a.bx, a.by, b.ax, b.ay)
+        * _orientation(a.ax, a.ay, a.bx, a.by, b.bx, b.by)
+        < 0
+    ) & (
+        _orientation(b.ax, b.ay, b.bx, b.by, a.ax, a.ay)
+        * _orientation(b.ax, b.ay, b.bx, b.by, a.bx, a.by)
+        < 0
+    )
+    ends = np.minimum(
+        np.minimum(
+            point_segment_distance2(a.ax, a.ay, b),
+            point_segment_distance2(a.bx, a.by, b),
+        ),
+        np.minimum(
+            point_segment_distance2(b.ax, b.ay, a),
+            point_segment_distance2(b.bx, b.by, a),
+        ),
+    )
+    return np.where(crossing, 0.0, ends)
+
+
+def entity_distance(
+    a: Shapes, b: Shapes, workspace: Workspace | None = None, key: Hashable = "f_D"
+) -> np.ndarray:
+    """f_D between the entities of ``a`` and ``b``, floored at 0.
+
+    Args:
+        a: Shapes whose slot axes broadcast against ``b``'s (see :func:`expand`).
+        b: The other shapes.
+        workspace: Scratch arrays (a fresh one if None); the result lives there and
+            is overwritten by the next call with the same key.
+        key: Names this use in ``workspace``.
+
+    Returns:
+        The distances, shaped as the broadcast of the slot and batch axes.
+    """
+    ws = workspace if workspace is not None else Workspace()
+    if isinstance(a, Discs) and isinstance(b, Discs):
+        shape = np.broadcast_shapes(a.x.shape, b.x.shape)
+        d = np.subtract(a.x, b.x, out=ws.get((key, "d"), shape))
+        dy = np.subtract(a.y, b.y, out=ws.get((key, "dy"), shape))
+        d *= d
+        dy *= dy
+        d += dy
+        np.sqrt(d, out=d)
+        if a.r is not None:
+            d -= a.r
+        if b.r is not None:
+            d -= b.r
+    elif isinstance(a, Discs) or isinstance(b, Discs):
+        discs, poly = (a, b) if isinstance(a, Discs) else (b, a)
+        # The polygon's segment axis leads: the least over it is a row-wise minimum.
+        d2 = point_segment_distance2(discs.x[None], discs.y[None], poly, ws, key)
+        d = np.minimum.reduce(d2, axis=0, out=ws.get((key, "d"), d2.shape[1:]))
+        np.sqrt(d, out=d)
+        if discs.r is not None:
+            d -= discs.r
+    else:
+        # a's segments on axis 0, b's on a new axis 1: the least over both.
+        sa = Segments(*(v[:, None] for v in a.arrays()))
+        sb = Segments(*(v[None] for v in b.arrays()))
+        d = np.sqrt(segment_segment_distance2(sa, sb).min(axis=(0, 1)))
+    return np.maximum(d, 0.0, out=d)

@@ -1,0 +1,84 @@
+"""Aggregation of feature samples: mean ignoring NaN, final value, trial length."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from sdbc_evolution.sdbc.aggregation import (
+    TrialAggregator,
+    aggregate_trial,
+    characterisation_length,
+    mean_over_trials,
+)
+
+NAN = math.nan
+
+
+def test_hand_computed_trial() -> None:
+    samples = np.array(
+        [
+            [1.0, NAN, NAN],
+            [NAN, 2.0, NAN],
+            [3.0, NAN, NAN],
+            [NAN, NAN, NAN],
+        ]
+    )
+    # Means over defined steps: 2, 2, never defined -> 0. Finals: the last defined
+    # value (3 at step 3, 2 at step 2), 0 if never defined. Length 4.
+    expected = [2.0, 2.0, 0.0, 3.0, 2.0, 0.0, 4.0]
+    np.testing.assert_array_equal(aggregate_trial(samples), expected)
+    aggregator = TrialAggregator(1, 3)
+    for row in samples:
+        aggregator.update(row[None], np.ones(1, bool))
+    np.testing.assert_array_equal(aggregator.result()[0], expected)
+    assert characterisation_length(3) == len(expected)
+
+
+def test_inactive_trials_keep_their_values() -> None:
+    aggregator = TrialAggregator(2, 1)
+    aggregator.update(np.array([[1.0], [10.0]]), np.array([True, True]))
+    # Trial 1 ended after one step: later values, even defined ones, do not count.
+    aggregator.update(np.array([[3.0], [99.0]]), np.array([True, False]))
+    np.testing.assert_array_equal(
+        aggregator.result(), [[2.0, 3.0, 2.0], [10.0, 10.0, 1.0]]
+    )
+    np.testing.assert_array_equal(aggregator.lengths, [2, 1])
+
+
+def test_update_checks_shapes() -> None:
+    aggregator = TrialAggregator(2, 3)
+    with pytest.raises(ValueError, match="do not fit 2 trials of 3 features"):
+        aggregator.update(np.zeros((3, 2)), np.ones(2, bool))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(
+        np.float64,
+        st.tuples(st.integers(1, 30), st.integers(1, 6)),
+        elements=st.one_of(
+            st.just(NAN), st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
+        ),
+    )
+)
+def test_streaming_equals_one_go(samples: np.ndarray) -> None:
+    aggregator = TrialAggregator(1, samples.shape[1])
+    for row in samples:
+        aggregator.update(row[None], np.ones(1, bool))
+    np.testing.assert_allclose(
+        aggregator.result()[0], aggregate_trial(samples), rtol=1e-12, atol=1e-9
+    )
+
+
+def test_mean_over_trials_is_per_controller() -> None:
+    vectors = np.arange(12.0).reshape(6, 2)  # 3 controllers x 2 trials
+    np.testing.assert_array_equal(
+        mean_over_trials(vectors, 2), [[1.0, 2.0], [5.0, 6.0], [9.0, 10.0]]
+    )
+    with pytest.raises(ValueError, match="do not split into controllers of 4 trials"):
+        mean_over_trials(vectors, 4)

@@ -1,0 +1,131 @@
+"""The SDBC extractor as an engine observer: raw vectors, names, bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from sdbc_evolution.sdbc.characterisation import SdbcExtractor, dimension_names
+from sdbc_states import SMALL, SMALL_NAMES, small_state
+
+NAN = math.nan
+
+
+def test_dimension_names() -> None:
+    assert dimension_names(SMALL) == (
+        *(f"{n} (M)" for n in SMALL_NAMES),
+        *(f"{n} (F)" for n in SMALL_NAMES),
+        "Simulation length",
+    )
+
+
+def test_hand_computed_characterisation() -> None:
+    # Two trials. Trial 0 has robots 0 and 2, then robot 2 alone, then none, and
+    # ends after 3 steps; trial 1 has robot 2 alone, then ends after 1 step.
+    steps = [
+        [[True, False, True], [False, False, True]],
+        [[False, False, True], [True, True, True]],
+        [[False, False, False], [True, True, True]],
+    ]
+    active = [[True, True], [True, False], [True, False]]
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 2)
+    assert extractor.dimension_names == dimension_names(SMALL)
+    for k, (present, act) in enumerate(zip(steps, active, strict=True), start=1):
+        state = small_state(present)
+        state.step = k
+        state.active = np.array(act)
+        extractor.observe(state)
+    vectors = extractor.characterisations()
+    assert vectors.shape == (2, 13)
+
+    b0 = 10.0 - 1.0  # robot 0 to the beacon
+    b2 = math.sqrt(40.0) - 1.0  # robot 2 to the beacon
+    # Per-step values of trial 0 (size, speed, dispersion, beacon, fence, is on):
+    #   step 1: 2/3, 3, 8, (b0+b2)/2, 6, 1;  step 2: 1/3, 4, -, b2, 10, 1;
+    #   step 3: 0, -, -, -, -, 1.
+    means_0 = [1 / 3, 3.5, 8.0, ((b0 + b2) / 2 + b2) / 2, 8.0, 1.0]
+    finals_0 = [0.0, 4.0, 8.0, b2, 10.0, 1.0]
+    np.testing.assert_allclose(vectors[0], [*means_0, *finals_0, 3.0], atol=1e-12)
+    # Trial 1: one step with robot 2 alone; its dispersion is never defined: 0.
+    values_1 = [1 / 3, 4.0, 0.0, b2, 10.0, 1.0]
+    np.testing.assert_allclose(vectors[1], [*values_1, *values_1, 1.0], atol=1e-12)
+    np.testing.assert_array_equal(extractor.lengths, [3, 1])
+
+
+def test_reuse_for_a_new_batch() -> None:
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 1)
+    extractor.observe(small_state([[True, True, True]]))
+    extractor.start(SMALL, 2)
+    extractor.observe(small_state([[True, False, False], [True, False, False]]))
+    vectors = extractor.characterisations()
+    assert vectors.shape == (2, 13)
+    np.testing.assert_array_equal(vectors[:, -1], [1.0, 1.0])
+
+
+def observed(extractor: SdbcExtractor, present, step: int = 1, active=None):
+    state = small_state(present)
+    state.step = step
+    if active is not None:
+        state.active = np.array(active)
+    extractor.observe(state)
+    return state
+
+
+def test_steps_must_arrive_in_order() -> None:
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 1)
+    with pytest.raises(ValueError, match="step 2 follows step 0"):
+        observed(extractor, [[True, True, True]], step=2)
+
+
+def test_an_ended_trial_cannot_resume() -> None:
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 2)
+    observed(extractor, [[True] * 3] * 2, step=1, active=[True, False])
+    with pytest.raises(ValueError, match="trial 1 is active again"):
+        observed(extractor, [[True] * 3] * 2, step=2, active=[True, True])
+
+
+def test_nan_in_a_present_entity_is_named() -> None:
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 2)
+    state = small_state([[True, True, True], [True, False, True]])
+    state.groups[0].attributes[1, 2, 0] = NAN
+    with pytest.raises(
+        ValueError, match=r"trial 1: feature 'Robots speed' is not finite"
+    ):
+        extractor.observe(state)
+    extractor.start(SMALL, 2)
+    state = small_state([[True, True, True], [True, False, True]])
+    state.groups[0].centres[0, 1, 0] = math.inf
+    with pytest.raises(ValueError, match=r"trial 0: feature 'Robots dispersion'"):
+        extractor.observe(state)
+
+
+def test_nan_in_an_ended_trial_is_ignored() -> None:
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 2)
+    state = small_state([[True, True, True], [True, False, True]])
+    state.groups[0].attributes[1, 2, 0] = NAN
+    state.active = np.array([True, False])
+    extractor.observe(state)
+    assert np.isfinite(extractor.characterisations()).all()
+
+
+def test_a_group_below_its_minimum_size_is_named() -> None:
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 1)
+    state = small_state([[True, True, True]])
+    state.groups[1].present = np.zeros((1, 1), dtype=bool)
+    with pytest.raises(ValueError, match=r"group 'Beacon' holds 0 entities, outside"):
+        extractor.observe(state)
+
+
+def test_use_before_start_is_an_error() -> None:
+    with pytest.raises(RuntimeError, match="start"):
+        SdbcExtractor().characterisations()
+    with pytest.raises(ValueError, match="n_trials 0"):
+        SdbcExtractor().start(SMALL, 0)
