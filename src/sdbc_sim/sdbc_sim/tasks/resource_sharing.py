@@ -1,0 +1,475 @@
+"""Resource sharing (SPEC.md, "Tasks"; Gomes, Mariano & Christensen, ALIFE 2014).
+
+A team of robots shares a single charging station in the middle of an open arena.
+Every robot spends energy at each step, more the faster it drives; a robot that
+parks on the station long enough recharges, and a robot out of energy dies. The
+station holds one robot at a time, so the team must take turns.
+
+Energy (per robot, per step, in this order), e its energy, k its docked steps:
+
+    drain:     e <- max(0, e - (d_min + (d_max - d_min) s)),  s = speed command / max
+    death:     the robot is dead once e = 0 (it stays as an obstacle, still)
+    charging:  e <- min(e_max, e + rate)  if docked and k >= delay
+    counting:  k <- min(k + 1, delay) if docked, else 0
+
+with d_min = ``min_energy_drain`` (1.05) and d_max = ``max_energy_drain`` (2), so the
+drain is 1.05 + 0.95 o0 for a moving robot (o0 its speed output) and 1.05 for a
+stopped one. A robot is *docked* when it is alive, its centre lies within
+``station_radius - robot_radius`` (1) of the station centre (it is wholly on the
+station) and its speed is below ``stationary_speed``; it charges from its
+``charge_delay + 1``-th docked step on (after ``charge_delay`` = 5 stationary
+steps), gaining ``charge_rate`` (20). The station holds one robot at a time: two
+docked centres would be within 2 (station_radius - robot_radius) < 2 robot_radius
+of each other, which the settings require.
+
+Fitness (paper, eq. F_s):
+
+    F_s = (s + e_bar / e_max) / (1 + N),
+
+s the survivors at the end, e_bar the mean energy of the N robots over the steps of
+the trial (a dead robot counts 0), N the team size.
+
+Task-specific characterisation (Gomes et al. 2013), each in [0, 1]: survivors s / N;
+mean energy / e_max; mean speed / max_speed (capped at 1: a robot can be pushed
+faster than it drives); mean centre distance to the station / (arena_size / 2),
+capped at 1. The last three are means over the alive robots at every sampled step,
+0 if no robot was ever alive at a sample; a step is sampled every
+``characterisation_interval`` steps (the authors' code sampled every 10th step).
+
+Sensors (inputs, in this order; readings as in the authors' code):
+  0..3. ``n_robot_arcs`` arcs: nearest other robot's edge distance d per sector
+     (sector j centred on bearing -pi + 2 pi j / n: back, right, ahead, left),
+     2 d / ``robot_sensor_range`` - 1, 1 when no robot is in range; dead robots
+     are sensed (they are obstacles);
+  4. station centre distance D: 2 D / ``station_sensor_range`` - 1, not capped
+     (the arena has no walls; a robot far out still reads how far it is);
+  5. station bearing / pi;
+  6. own energy: 2 e / e_max - 1;
+  7. charging flag: 1 if the robot charged at the last step, -1 otherwise.
+
+Outputs: speed o0 x ``max_speed``, 0 if o2 > ``stop_threshold``; turn
+(2 o1 - 1) x ``max_turn`` radians, applied before the move.
+
+Choices where SPEC.md is silent (from the authors' code, MASE fd13449, where it says):
+- No walls: the arena is open, as in the authors' code; robots may wander off.
+- Start: robot i uniform in [r, size - r]^2 (wholly inside the arena), redrawn until
+  its centre is at least ``start_separation`` from the station centre and from every
+  earlier robot; then its heading, uniform in [-pi, pi). Per robot: positions, then
+  heading.
+- "Stationary" is the measured speed after the physics step, below
+  ``stationary_speed`` (the authors' 0.001), so a robot pushed off its spot stops
+  charging and starts counting again.
+- The drain uses the speed command, not the measured speed (authors' code): a robot
+  pushing against another pays for the speed it asks for.
+- Drain before charging, so a robot can die on the station at its last unit of
+  energy; a charging robot at full energy reads e_max.
+- The charging input and the "is charging" attribute are "charged at this step"
+  (the paper: "whether it is currently charging"); the authors' code fed the
+  robots "centre on the station" instead.
+- The station's "is occupied" is "some robot charged at this step" (the paper:
+  "whether it is currently charging a robot or not").
+- A trial ends when every robot is dead, or after ``max_steps``.
+- Task state: Agent (x, y, turning speed = angular velocity, linear speed = |v|,
+  energy level, is charging; alive robots only), Station (is occupied; a static
+  circle of radius ``station_radius`` at the arena centre).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sdbc_sim.network import NetworkShape
+from sdbc_sim.sensors import (
+    arc_index,
+    arc_minimum,
+    bearing,
+    normalised_reading,
+    pairwise_offsets,
+)
+from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
+from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
+
+_MAX_START_DRAWS = 100_000
+"""Position draws per robot before a start counts as impossible."""
+
+
+@dataclass(frozen=True)
+class ResourceSharingConfig:
+    """Settings of the resource sharing task; defaults from SPEC.md.
+
+    Attributes:
+        arena_size: Side of the square arena (open: no walls).
+        n_robots: N, robots in the team.
+        robot_radius: Radius of a robot.
+        max_speed: Top speed, units per step.
+        max_turn: Largest turn, radians per step.
+        start_separation: Least centre distance at the start between two robots,
+            and between a robot and the station centre.
+        station_radius: Radius of the charging station at the arena centre.
+        max_energy: e_max, the most energy a robot can hold.
+        initial_energy: Energy of every robot at the start (SPEC.md: e_max).
+        min_energy_drain: Energy spent per step by a stopped robot.
+        max_energy_drain: Energy spent per step by a robot at full speed; the drain
+            grows linearly with the speed command in between.
+        charge_rate: Energy gained per charging step.
+        charge_delay: Stationary steps on the station before charging starts.
+        stationary_speed: A robot slower than this (units per step) is stationary.
+        robot_sensor_range: Range (edge to edge) of the robot-sensing arcs.
+        n_robot_arcs: Robot-sensing arcs.
+        station_sensor_range: Station distance that reads 1 (2 D / range - 1).
+        n_hidden: Hidden units of the network.
+        stop_threshold: Output o2 above this stops the robot.
+        max_steps: tau, the longest trial.
+        characterisation_interval: The task-specific characterisation samples
+            every this many steps (the authors' code: 10).
+    """
+
+    arena_size: float = 150.0
+    n_robots: int = 3
+    robot_radius: float = 4.0
+    max_speed: float = 1.0
+    max_turn: float = 0.78
+    start_separation: float = 34.0
+    station_radius: float = 5.0
+    max_energy: float = 500.0
+    initial_energy: float = 500.0
+    min_energy_drain: float = 1.05
+    max_energy_drain: float = 2.0
+    charge_rate: float = 20.0
+    charge_delay: int = 5
+    stationary_speed: float = 0.001
+    robot_sensor_range: float = 25.0
+    n_robot_arcs: int = 4
+    station_sensor_range: float = 75.0
+    n_hidden: int = 6
+    stop_threshold: float = 0.5
+    max_steps: int = 500
+    characterisation_interval: int = 1
+
+    def __post_init__(self) -> None:
+        for name in (
+            "arena_size",
+            "robot_radius",
+            "max_speed",
+            "max_turn",
+            "start_separation",
+            "station_radius",
+            "max_energy",
+            "initial_energy",
+            "stationary_speed",
+            "robot_sensor_range",
+            "station_sensor_range",
+        ):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"resource_sharing: {name} must be positive, got {v}")
+        for name in ("min_energy_drain", "max_energy_drain", "charge_rate"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"resource_sharing: {name} must be >= 0, got {v}")
+        for name in (
+            "n_robots",
+            "n_robot_arcs",
+            "n_hidden",
+            "max_steps",
+            "characterisation_interval",
+        ):
+            if getattr(self, name) < 1:
+                raise ValueError(
+                    f"resource_sharing: {name} must be >= 1, got {getattr(self, name)}"
+                )
+        if self.charge_delay < 0:
+            raise ValueError(
+                f"resource_sharing: charge_delay must be >= 0, got {self.charge_delay}"
+            )
+        if not 0.0 <= self.stop_threshold <= 1.0:
+            raise ValueError(
+                "resource_sharing: stop_threshold must be in [0, 1], got "
+                f"{self.stop_threshold}"
+            )
+        if self.initial_energy > self.max_energy:
+            raise ValueError(
+                f"resource_sharing: initial_energy {self.initial_energy} exceeds "
+                f"max_energy {self.max_energy}"
+            )
+        if self.max_energy_drain < self.min_energy_drain:
+            raise ValueError(
+                f"resource_sharing: max_energy_drain {self.max_energy_drain} is below "
+                f"min_energy_drain {self.min_energy_drain}"
+            )
+        r = self.robot_radius
+        if self.max_speed >= r:
+            raise ValueError(
+                f"resource_sharing: max_speed {self.max_speed} must be below the robot "
+                f"radius {r}, or robots could pass through each other in one step"
+            )
+        if self.station_radius <= r:
+            raise ValueError(
+                f"resource_sharing: station_radius {self.station_radius} must exceed "
+                f"robot_radius {r}, or no robot fits on the station"
+            )
+        if self.station_radius >= 2.0 * r:
+            raise ValueError(
+                f"resource_sharing: station_radius {self.station_radius} must be below "
+                f"a robot's diameter {2.0 * r}, or the station could hold two robots"
+            )
+        if self.start_separation < 2.0 * r:
+            raise ValueError(
+                f"resource_sharing: start_separation {self.start_separation} must be "
+                f"at least a robot's diameter {2.0 * r}"
+            )
+        # Necessary for the start draws: the start box (side size - 2 r, centred
+        # on the station) reaches sep from the station centre, and N + 1 discs of
+        # radius sep / 2 centred in it fit, by area, in the box grown by sep / 2.
+        sep, side = self.start_separation, self.arena_size - 2.0 * r
+        needed = (self.n_robots + 1) * math.pi * (sep / 2.0) ** 2
+        if side <= 0.0 or side / math.sqrt(2.0) < sep or needed > (side + sep) ** 2:
+            raise ValueError(
+                f"resource_sharing: the arena is too small for its robots: arena_size "
+                f"{self.arena_size} cannot hold {self.n_robots} robots of radius {r} "
+                f"and the station at least start_separation {sep} apart"
+            )
+
+    @property
+    def n_inputs(self) -> int:
+        """Arcs, station distance and bearing, energy, charging flag."""
+        return self.n_robot_arcs + 4
+
+    @property
+    def docking_distance(self) -> float:
+        """Largest centre distance to the station centre at which a robot lies
+        wholly on the station (SPEC.md: 1)."""
+        return self.station_radius - self.robot_radius
+
+
+@dataclass
+class ResourceSharingTrials(TrialArrays):
+    """Per-trial state of resource sharing.
+
+    Attributes:
+        energy: (B, N) energy of each robot; 0 once dead.
+        docked_steps: (B, N) int, consecutive docked steps, at most charge_delay.
+        charging: (B, N) bool, robots that charged at the last step.
+        command: (B, N) speed command of the last step / max_speed, in [0, 1].
+        energy_sum: (B,) sum over steps of the N robots' energy (fitness).
+        samples: (B,) alive robot samples taken for the characterisation.
+        sampled_energy: (B,) sum of the sampled robots' energy.
+        sampled_speed: (B,) sum of the sampled robots' speed.
+        sampled_distance: (B,) sum of the sampled robots' distance to the station.
+    """
+
+    energy: np.ndarray
+    docked_steps: np.ndarray
+    charging: np.ndarray
+    command: np.ndarray
+    energy_sum: np.ndarray
+    samples: np.ndarray
+    sampled_energy: np.ndarray
+    sampled_speed: np.ndarray
+    sampled_distance: np.ndarray
+
+
+class ResourceSharing(Task):
+    """The resource sharing task over a batch of trials."""
+
+    name = "resource_sharing"
+    config_class = ResourceSharingConfig
+
+    def __init__(self, config: ResourceSharingConfig | None = None) -> None:
+        c = self.config = config or ResourceSharingConfig()
+        n, s, r = c.n_robots, c.arena_size, c.robot_radius
+        self.network = NetworkShape(c.n_inputs, c.n_hidden, 3)
+        self.layout = BodyLayout(radii=(r,) * n, controlled=(True,) * n)
+        self.max_steps = c.max_steps
+        self.characterisation_size = 4
+        self.station_centre = np.array([s / 2.0, s / 2.0])
+        self.walls = np.empty((0, 2, 2))
+        # No walls: a robot can drive max_speed x max_steps beyond the arena.
+        reach = c.max_speed * c.max_steps + r
+        self.extent = (-reach, -reach, s + reach, s + reach)
+        self.description = TaskDescription(
+            name=self.name,
+            groups=(
+                EntityGroupSpec(
+                    "Agent",
+                    (
+                        "x",
+                        "y",
+                        "turning speed",
+                        "linear speed",
+                        "energy level",
+                        "is charging",
+                    ),
+                    0,
+                    n,
+                    False,
+                    Geometry.CIRCLE,
+                ),
+                EntityGroupSpec(
+                    "Station", ("is occupied",), 1, 1, True, Geometry.CIRCLE
+                ),
+            ),
+        )
+        self._not_self = ~np.eye(n, dtype=bool)
+        self._radii = np.full((1, n), r)
+        self._station_centres = self.station_centre[None, None, :]
+        self._station_radii = np.full((1, 1), c.station_radius)
+        self._station_present = np.ones((1, 1), dtype=bool)
+
+    def reset(
+        self, rngs: list[np.random.Generator]
+    ) -> tuple[ResourceSharingTrials, np.ndarray, np.ndarray]:
+        c = self.config
+        n, r, s = c.n_robots, c.robot_radius, c.arena_size
+        b = len(rngs)
+        position = np.empty((b, n, 2))
+        angle = np.empty((b, n))
+        for t, rng in enumerate(rngs):
+            taken = [self.station_centre]
+            for i in range(n):
+                for _ in range(_MAX_START_DRAWS):
+                    p = rng.uniform(r, s - r, size=2)
+                    gaps = np.hypot(*(np.asarray(taken) - p).T)
+                    if bool(np.all(gaps >= c.start_separation)):
+                        break
+                else:
+                    raise ValueError(
+                        f"resource_sharing: the arena is too small for its robots: no "
+                        f"start for robot {i} at least start_separation "
+                        f"{c.start_separation} from the others after "
+                        f"{_MAX_START_DRAWS} draws"
+                    )
+                taken.append(p)
+                position[t, i] = p
+                angle[t, i] = rng.uniform(-np.pi, np.pi)
+        trials = ResourceSharingTrials(
+            energy=np.full((b, n), c.initial_energy),
+            docked_steps=np.zeros((b, n), dtype=np.int64),
+            charging=np.zeros((b, n), dtype=bool),
+            command=np.zeros((b, n)),
+            energy_sum=np.zeros(b),
+            samples=np.zeros(b, dtype=np.int64),
+            sampled_energy=np.zeros(b),
+            sampled_speed=np.zeros(b),
+            sampled_distance=np.zeros(b),
+        )
+        return trials, position, angle
+
+    def sensors(self, trials: ResourceSharingTrials, bodies: BodyState) -> np.ndarray:
+        c = self.config
+        pos, heading = bodies.position, bodies.angle
+        b, n = heading.shape
+        k = c.n_robot_arcs
+        out = np.empty((b, n, c.n_inputs))
+        dx, dy, dist = pairwise_offsets(pos)
+        edge = dist - 2.0 * c.robot_radius
+        sensed = (edge <= c.robot_sensor_range) & self._not_self
+        readings = np.where(sensed, normalised_reading(edge, c.robot_sensor_range), 1.0)
+        np.maximum(readings, -1.0, out=readings)
+        arcs = arc_index(bearing(dx, dy, heading[..., None]), k)
+        out[..., :k] = arc_minimum(readings, arcs, k)
+        sx = self.station_centre[0] - pos[..., 0]
+        sy = self.station_centre[1] - pos[..., 1]
+        out[..., k] = np.hypot(sx, sy) * (2.0 / c.station_sensor_range) - 1.0
+        out[..., k + 1] = bearing(sx, sy, heading) / np.pi
+        out[..., k + 2] = trials.energy * (2.0 / c.max_energy) - 1.0
+        out[..., k + 3] = np.where(trials.charging, 1.0, -1.0)
+        return out
+
+    def actuate(
+        self, trials: ResourceSharingTrials, bodies: BodyState, outputs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        alive = trials.energy > 0.0
+        go = alive & (outputs[..., 2] <= c.stop_threshold)
+        command = np.where(go, outputs[..., 0], 0.0)
+        trials.command = command
+        turn = np.where(alive, (2.0 * outputs[..., 1] - 1.0) * c.max_turn, 0.0)
+        return command * c.max_speed, turn
+
+    def update(
+        self, trials: ResourceSharingTrials, bodies: BodyState, step: int
+    ) -> np.ndarray:
+        c = self.config
+        drain = c.min_energy_drain + (c.max_energy_drain - c.min_energy_drain) * (
+            trials.command
+        )
+        energy = np.maximum(trials.energy - drain, 0.0, out=trials.energy)
+        alive = energy > 0.0
+        pos = bodies.position
+        distance = np.hypot(
+            pos[..., 0] - self.station_centre[0], pos[..., 1] - self.station_centre[1]
+        )
+        speed = bodies.speed
+        docked = alive & (distance < c.docking_distance) & (speed < c.stationary_speed)
+        # Charging needs charge_delay docked steps before this one.
+        charging = docked & (trials.docked_steps >= c.charge_delay)
+        trials.docked_steps = np.where(
+            docked, np.minimum(trials.docked_steps + 1, c.charge_delay), 0
+        )
+        trials.charging = charging
+        np.minimum(
+            energy + np.where(charging, c.charge_rate, 0.0), c.max_energy, out=energy
+        )
+        trials.energy_sum += energy.sum(axis=1)
+        if step % c.characterisation_interval == 0:
+            trials.samples += alive.sum(axis=1)
+            trials.sampled_energy += np.where(alive, energy, 0.0).sum(axis=1)
+            trials.sampled_speed += np.where(alive, speed, 0.0).sum(axis=1)
+            trials.sampled_distance += np.where(alive, distance, 0.0).sum(axis=1)
+        return ~alive.any(axis=1)
+
+    def task_state(
+        self, trials: ResourceSharingTrials, bodies: BodyState
+    ) -> tuple[GroupState, ...]:
+        pos = bodies.position
+        b, n = bodies.angle.shape
+        agents = np.empty((b, n, 6))
+        agents[..., 0:2] = pos
+        agents[..., 2] = bodies.angular_velocity
+        agents[..., 3] = bodies.speed
+        agents[..., 4] = trials.energy
+        agents[..., 5] = trials.charging
+        occupied = trials.charging.any(axis=1).astype(np.float64)[:, None, None]
+        return (
+            GroupState(
+                present=trials.energy > 0.0,
+                attributes=agents,
+                centres=pos.copy(),
+                radii=self._radii,
+            ),
+            GroupState(
+                present=self._station_present,
+                attributes=occupied,
+                centres=self._station_centres,
+                radii=self._station_radii,
+            ),
+        )
+
+    def results(
+        self, trials: ResourceSharingTrials, length: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        n = c.n_robots
+        survivors = (trials.energy > 0.0).sum(axis=1).astype(np.float64)
+        mean_energy = trials.energy_sum / (n * length)
+        fitness = (survivors + mean_energy / c.max_energy) / (1.0 + n)
+        samples = np.maximum(trials.samples, 1)
+        characterisation = np.stack(
+            [
+                survivors / n,
+                trials.sampled_energy / samples / c.max_energy,
+                np.minimum(trials.sampled_speed / samples / c.max_speed, 1.0),
+                np.minimum(
+                    trials.sampled_distance / samples / (c.arena_size / 2.0), 1.0
+                ),
+            ],
+            axis=1,
+        )
+        return fitness, characterisation
+
+
+TASK = ResourceSharing

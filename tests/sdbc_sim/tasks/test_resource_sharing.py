@@ -1,0 +1,372 @@
+"""Resource sharing rules, sensors and results against hand-computed numbers.
+
+The robots are driven by hand-written controllers: fixed outputs supplied to the
+engine at every step. STOP holds a robot still (o2 = 1 > 0.5), GO drives it
+straight at full speed (o0 = 1, o1 = 0.5: no turn).
+
+The engine moves a body by the speed commanded at step k during step k + 1 (its
+measured speed is the commanded one from step k on), so a robot commanded to stop at
+step k has speed 0 at step k and is where it stops at step k + 1.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from sdbc_evolution.sdbc.characterisation import SdbcExtractor
+from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
+from sdbc_sim.task_state import TaskState
+from sdbc_sim.tasks import make_task
+from sdbc_sim.tasks.resource_sharing import ResourceSharing, ResourceSharingConfig
+
+STOP = (0.0, 0.5, 1.0)
+GO = (1.0, 0.5, 0.0)
+CENTRE = [75.0, 75.0]
+"""The station centre in the default 150 x 150 arena."""
+NORTH = [75.0, 125.0]
+WEST = [25.0, 75.0]
+"""Parking spots 50 from the station centre, far from everyone."""
+
+
+def drive(
+    task: ResourceSharing, policy: Callable[[int], list[tuple[float, float, float]]]
+) -> tuple[TrialStepper, list[TaskState], list[np.ndarray], list[np.ndarray]]:
+    """Runs one trial with the outputs ``policy(k)`` at step k = 1, 2, ...
+
+    Returns the stepper, and per step the task state, the energies and the
+    charging flags of the robots.
+    """
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    states, energy, charging = [], [], []
+    while not stepper.done:
+        stepper.step(np.array(policy(stepper.step_count + 1)))
+        trials = stepper.sim.trials
+        states.append(stepper.state())
+        energy.append(trials.energy[0].copy())
+        charging.append(trials.charging[0].copy())
+    return stepper, states, energy, charging
+
+
+def test_parked_robot_charges_after_five_stationary_steps(placed) -> None:
+    task = placed(
+        make_task("resource_sharing", initial_energy=100.0),
+        [CENTRE, NORTH, WEST],
+        [0.0, 0.0, 0.0],
+    )
+    stepper, states, energy, charging = drive(task, lambda k: [STOP] * 3)
+    e = np.array(energy)
+    # Robot 0 sits on the station: docked from step 1, it spends 1.05 per step for
+    # 5 steps (100 - 5.25 = 94.75), then charges 20 - 1.05 = 18.95 net per step:
+    # 94.75 + 21 x 18.95 = 492.7 at step 26, full (500) from step 27 on.
+    assert e[4, 0] == pytest.approx(94.75, abs=1e-12)
+    assert e[5, 0] == pytest.approx(113.7, abs=1e-12)
+    assert e[25, 0] == pytest.approx(492.7, abs=1e-9)
+    assert np.all(e[26:, 0] == 500.0)
+    flags = np.array(charging)
+    assert not flags[:5].any() and flags[5:, 0].all() and not flags[:, 1:].any()
+    occupied = [float(s.groups[1].attributes[0, 0, 0]) for s in states]
+    assert occupied[:5] == [0.0] * 5 and set(occupied[5:]) == {1.0}
+    # The others drain 1.05 per step: 100 - 95 x 1.05 = 0.25 left after step 95,
+    # dead at step 96, and gone from the Agent group.
+    assert e[94, 1:] == pytest.approx([0.25, 0.25], abs=1e-9)
+    assert np.all(e[95:, 1:] == 0.0)
+    present = np.array([s.groups[0].present[0] for s in states])
+    assert present[94].tolist() == [True, True, True]
+    assert present[95].tolist() == [True, False, False]
+    # The trial runs to max_steps with one survivor. Energy sums over the trial:
+    # robot 1 or 2: sum_{k=1}^{95} (100 - 1.05 k) = 9500 - 1.05 x 4560 = 4712;
+    # robot 0: sum_{k=1}^{5} (100 - 1.05 k) = 484.25, then 94.75 + 18.95 m for
+    # m = 1..21 (6367.2), then 474 steps at 500 (237000): 243851.45.
+    fitness, characterisation, length = stepper.result()
+    assert length == 500
+    energy_sum = 243851.45 + 2 * 4712.0
+    assert fitness == pytest.approx((1 + energy_sum / (3 * 500) / 500) / 4, rel=1e-12)
+    # Characterisation: survivors 1/3; the alive robots are sampled 95 x 3 + 405
+    # = 690 times, holding energy_sum in all, at speed 0, 0 (robot 0) or 50 (the
+    # others, 95 steps each) from the station.
+    np.testing.assert_allclose(
+        characterisation,
+        [1 / 3, energy_sum / 690 / 500, 0.0, 2 * 95 * 50 / 690 / 75],
+        rtol=1e-12,
+    )
+
+
+def test_station_takes_one_robot_at_a_time(placed) -> None:
+    """Robot 0 charges on the station while robot 1 waits next to it; robot 0
+    drives off at step 20, robot 1 drives on from step 22 and stops there at 32."""
+
+    def policy(k: int) -> list[tuple[float, float, float]]:
+        return [STOP if k < 20 else GO, GO if 22 <= k <= 31 else STOP, STOP]
+
+    task = placed(
+        ResourceSharing(), [CENTRE, [75.0, 85.0], WEST], [0.0, -math.pi / 2, 0.0]
+    )
+    stepper, states, energy, charging = drive(task, policy)
+    flags = np.array(charging)
+    steps = np.arange(1, len(flags) + 1)
+    # Robot 0 charges from step 6 until it moves at step 20; robot 1, 10 from
+    # the station centre (2 from robot 0's edge), cannot dock until robot 0 has
+    # left. Robot 1 moves during steps 23..32 from y = 85 to y = 75, is docked
+    # from step 32 (speed 0) and charges from step 37.
+    assert np.array_equal(steps[flags[:, 0]], np.arange(6, 20))
+    assert np.array_equal(steps[flags[:, 1]], np.arange(37, 501))
+    assert not flags[:, 2].any()
+    assert flags.sum(axis=1).max() == 1
+    y1 = np.array([s.groups[0].centres[0, 1, 1] for s in states])
+    np.testing.assert_allclose(
+        y1[[21, 22, 30, 31]], [85.0, 84.0, 76.0, 75.0], atol=1e-9
+    )
+    # Robot 1's energy: 21 stopped steps, 10 at full speed (drain 2), 5 docked,
+    # then charging: 500 - 21 x 1.05 - 10 x 2 - 5 x 1.05 = 452.7 at step 36,
+    # 452.7 + 18.95 = 471.65 at step 37.
+    e = np.array(energy)
+    assert e[35, 1] == pytest.approx(452.7, abs=1e-9)
+    assert e[36, 1] == pytest.approx(471.65, abs=1e-9)
+    # Robot 0 was full when it left at step 20 and spends 2 per step after:
+    # 498 at step 20, dead at step 20 + 249 = 269.
+    assert e[19, 0] == 500.0 - 2.0
+    assert e[267, 0] == pytest.approx(2.0, abs=1e-9) and e[268, 0] == 0.0
+    occupied = np.array([s.groups[1].attributes[0, 0, 0] for s in states])
+    np.testing.assert_array_equal(occupied, flags.any(axis=1))
+
+
+def test_idle_team_dies_and_ends_the_trial() -> None:
+    task = ResourceSharing()
+    stepper, states, energy, _ = drive(task, lambda k: [STOP] * 3)
+    # 500 / 1.05 = 476.19: 0.2 left after step 476, everyone dead at step 477.
+    fitness, characterisation, length = stepper.result()
+    assert length == 477
+    e = np.array(energy)
+    assert e[475] == pytest.approx([0.2] * 3, abs=1e-9)
+    assert np.all(e[476] == 0.0)
+    assert not states[-1].groups[0].present.any()
+    # Mean energy over robots and steps: sum_{k=1}^{476} (500 - 1.05 k) / 477
+    # = (238000 - 1.05 x 113526) / 477 = 118797.7 / 477.
+    assert fitness == pytest.approx((0 + 118797.7 / 477 / 500) / 4, rel=1e-12)
+    # The robots never move: the characterisation's distance is their start's.
+    start = states[0].groups[0].centres[0]
+    distance = np.linalg.norm(start - CENTRE, axis=1).mean()
+    np.testing.assert_allclose(
+        characterisation,
+        [0.0, 118797.7 / 476 / 500, 0.0, distance / 75],
+        rtol=1e-12,
+    )
+
+
+@pytest.mark.parametrize(
+    ("outputs", "drain"),
+    [
+        ((1.0, 0.5, 0.0), 2.0),
+        ((0.5, 0.5, 0.0), 1.05 + 0.95 * 0.5),
+        ((0.0, 0.5, 0.0), 1.05),
+        ((1.0, 0.5, 1.0), 1.05),
+    ],
+)
+def test_drain_grows_with_the_speed_command(placed, outputs, drain) -> None:
+    """1.05 + 0.95 o0 per step, o0 read as 0 when o2 stops the robot."""
+    task = placed(
+        make_task("resource_sharing", max_steps=3),
+        [NORTH, WEST, [125.0, 75.0]],
+        [math.pi / 2, math.pi, 0.0],
+    )
+    _, _, energy, _ = drive(task, lambda k: [outputs] * 3)
+    np.testing.assert_allclose(
+        np.array(energy)[:, 0], 500.0 - drain * np.arange(1, 4), rtol=1e-15
+    )
+
+
+def test_characterisation_interval_samples_every_nth_step(placed) -> None:
+    """Robot 0 drives off the station at step 1 (speed 1 from step 1, moving from
+    step 2): sampled at steps 10 and 20 only, it is 9 and 19 from the station."""
+    task = placed(
+        make_task("resource_sharing", max_steps=20, characterisation_interval=10),
+        [CENTRE, NORTH, WEST],
+        [0.0, 0.0, 0.0],
+    )
+    stepper, _, _, _ = drive(task, lambda k: [GO, STOP, STOP])
+    _, characterisation, _ = stepper.result()
+    energy = (500 - 2 * 10) + 2 * (500 - 1.05 * 10) + (500 - 2 * 20) + 2 * (500 - 21)
+    np.testing.assert_allclose(
+        characterisation,
+        [1.0, energy / 6 / 500, 2 / 6, (9 + 19 + 4 * 50) / 6 / 75],
+        rtol=1e-12,
+    )
+
+
+def test_sensors_by_hand(placed) -> None:
+    start = [[40.0, 75.0], [40.0, 95.0], [40.0, 40.0]]
+    task = placed(ResourceSharing(), start, [0.0, math.pi, math.pi / 2])
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    x = stepper.sensors()
+    assert x.shape == (3, 8)
+    # Robot 0 faces +x: the station 35 ahead; robot 1 on its left, 20 - 8 = 12
+    # edge to edge; robot 2 35 - 8 = 27 away, out of range. Full, not charging.
+    np.testing.assert_allclose(
+        x[0], [1, 1, 1, 2 * 12 / 25 - 1, 2 * 35 / 75 - 1, 0, 1, -1], atol=1e-12
+    )
+    # Robot 1 faces -x: robot 0 on its left (bearing +pi/2); the station at
+    # (35, -20), bearing atan2(-20, 35) - pi + 2 pi.
+    station = math.hypot(35, 20)
+    np.testing.assert_allclose(
+        x[1],
+        [
+            1,
+            1,
+            1,
+            2 * 12 / 25 - 1,
+            2 * station / 75 - 1,
+            (math.atan2(-20, 35) + math.pi) / math.pi,
+            1,
+            -1,
+        ],
+        atol=1e-12,
+    )
+    # Robot 2 faces +y; nobody within 25; the station at (35, 35), bearing -pi/4.
+    np.testing.assert_allclose(
+        x[2, 4:], [2 * math.hypot(35, 35) / 75 - 1, -0.25, 1, -1], atol=1e-12
+    )
+
+
+def test_sensors_read_energy_and_charging(placed) -> None:
+    task = placed(
+        make_task("resource_sharing", initial_energy=200.0, charge_delay=0),
+        [CENTRE, NORTH, WEST],
+        [0.0, 0.0, 0.0],
+    )
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    stepper.step(np.array([STOP] * 3))
+    x = stepper.sensors()
+    # With no delay robot 0 charges at once: 200 - 1.05 + 20 = 218.95.
+    np.testing.assert_allclose(
+        x[:, 6], 2 * np.array([218.95, 198.95, 198.95]) / 500 - 1
+    )
+    np.testing.assert_array_equal(x[:, 7], [1, -1, -1])
+
+
+def test_task_state_groups(placed) -> None:
+    task = placed(ResourceSharing(), [CENTRE, NORTH, WEST], [0.0, 1.0, 2.0])
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    stepper.step(np.array([STOP, (1.0, 1.0, 0.0), STOP]))
+    agent, station = stepper.state().groups
+    # Robot 1 turned by 0.78 rad and drives at 1: its measured speeds.
+    np.testing.assert_allclose(
+        agent.attributes[0, 1], [75, 125, 0.78, 1.0, 500 - 2.0, 0.0], atol=1e-12
+    )
+    np.testing.assert_allclose(
+        agent.attributes[0, 0], [75, 75, 0.0, 0.0, 500 - 1.05, 0.0], atol=1e-12
+    )
+    assert agent.present.tolist() == [[True, True, True]]
+    np.testing.assert_array_equal(agent.radii, [[4.0, 4.0, 4.0]])
+    np.testing.assert_array_equal(station.centres, [[CENTRE]])
+    np.testing.assert_array_equal(station.radii, [[5.0]])
+    assert station.present.tolist() == [[True]]
+
+
+def test_random_starts_keep_their_distances() -> None:
+    task = ResourceSharing()
+    c = task.config
+    trials, position, angle = task.reset([np.random.default_rng(s) for s in range(300)])
+    r = c.robot_radius
+    assert np.all((position >= r) & (position <= c.arena_size - r))
+    assert np.all(np.linalg.norm(position - CENTRE, axis=-1) >= 34.0)
+    gaps = np.linalg.norm(position[:, :, None] - position[:, None], axis=-1)
+    assert np.all(gaps[:, ~np.eye(3, dtype=bool)] >= 34.0)
+    assert np.all((angle >= -np.pi) & (angle < np.pi))
+    assert np.all(trials.energy == 500.0) and not trials.charging.any()
+    again = task.reset([np.random.default_rng(7)])
+    np.testing.assert_array_equal(again[1][0], position[7])
+
+
+def test_description_gives_the_papers_21_dimensions() -> None:
+    task = make_task("resource_sharing")
+    d = task.description
+    assert [g.name for g in d.groups] == ["Agent", "Station"]
+    assert d.group("Agent").attributes == (
+        "x",
+        "y",
+        "turning speed",
+        "linear speed",
+        "energy level",
+        "is charging",
+    )
+    assert (d.group("Agent").min_size, d.group("Agent").max_size) == (0, 3)
+    assert d.group("Station").attributes == ("is occupied",)
+    assert d.group("Station").is_static and not d.group("Agent").is_static
+    assert task.genome_length == 75
+    # The SDBC extractor reads the task state of real trials into 2 x 10 + 1.
+    extractor = SdbcExtractor()
+    rng = np.random.default_rng(5)
+    genomes = rng.uniform(-1, 1, (4, 75))
+    result = run_batch(task, genomes, np.arange(8).reshape(4, 2), [extractor])
+    names = extractor.dimension_names
+    assert len(names) == 21
+    assert "Agent energy level (M)" in names and "Station is occupied (F)" in names
+    vectors = extractor.characterisations()
+    assert vectors.shape == (8, 21) and np.isfinite(vectors).all()
+    np.testing.assert_array_equal(vectors[:, -1], result.length.ravel())
+
+
+def test_batch_matches_a_trial_alone() -> None:
+    """The same genome and seed, alone and in slot 37 of a batch of random
+    genomes: identical to the bit."""
+    task = ResourceSharing(ResourceSharingConfig(max_steps=150))
+    rng = np.random.default_rng(3)
+    genomes = rng.uniform(-1, 1, (60, task.genome_length))
+    seeds = rng.integers(0, 2**31, (60, 1))
+    batch = run_batch(task, genomes, seeds)
+    alone = run_batch(task, genomes[37:38], seeds[37:38])
+    assert batch.fitness[37, 0] == alone.fitness[0, 0]
+    np.testing.assert_array_equal(batch.characterisation[37], alone.characterisation[0])
+    assert batch.length[37, 0] == alone.length[0, 0]
+    sim = BatchSimulation(task, seeds[:, 0], genomes)
+    assert sim.sensors().shape == (60, 3, 8)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"robot_radius": -4.0}, "robot_radius must be positive"),
+        ({"arena_size": 50.0}, "too small for its robots"),
+        ({"arena_size": 20.0}, "too small for its robots"),
+        ({"station_radius": 3.0}, "station_radius"),
+        ({"station_radius": 8.0}, "could hold two robots"),
+        ({"initial_energy": 600.0}, "initial_energy"),
+        ({"min_energy_drain": 3.0}, "max_energy_drain"),
+        ({"charge_delay": -1}, "charge_delay must be >= 0"),
+        ({"max_speed": 5.0}, "pass through each other"),
+        ({"start_separation": 6.0}, "start_separation"),
+        ({"characterisation_interval": 0}, "characterisation_interval"),
+        ({"stationary_speed": float("nan")}, "stationary_speed"),
+    ],
+)
+def test_bad_settings_are_named(overrides: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        ResourceSharingConfig(**overrides)
+    with pytest.raises(ValueError, match=message):
+        make_task("resource_sharing", **overrides)
+
+
+def test_bad_genome_is_refused_before_running() -> None:
+    task = ResourceSharing()
+    with pytest.raises(ValueError, match="length 74"):
+        run_batch(task, np.zeros((1, 74)), np.zeros((1, 1), dtype=np.int64))
+    bad = np.zeros((1, 75))
+    bad[0, 3] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        run_batch(task, bad, np.zeros((1, 1), dtype=np.int64))
+
+
+def test_unplaceable_team_is_refused_before_running() -> None:
+    """Five robots 34 apart and from the station cannot start in a 60 arena (only
+    its four corners are 34 from the centre), though the settings pass the
+    quick checks."""
+    task = make_task("resource_sharing", arena_size=60.0, n_robots=5)
+    with pytest.raises(ValueError, match="no start for robot 4"):
+        run_batch(task, np.zeros((1, 75)), np.zeros((1, 1), dtype=np.int64))
