@@ -1,0 +1,231 @@
+"""``sdbc-evolve``: run, resume and watch an evolutionary experiment.
+
+With no arguments it runs the quick-start experiment (NS-SD+ on gate escape, a few
+minutes on two cores), says where the results are, and renders the best
+individual's trial as a GIF. Flags override the configuration (the quick-start one,
+or ``--config FILE``); ``configs/`` holds examples, the paper's setup included.
+
+Examples::
+
+    sdbc-evolve
+    sdbc-evolve --task predator_prey --treatment fit --generations 100 --seed 3
+    sdbc-evolve --config configs/paper/gate_escape.yaml --treatment ns-ts --out runs/a
+    sdbc-evolve --resume --out runs/a
+    sdbc-evolve --config run.yaml --scheduler tcp://10.0.0.5:8786
+
+Exit status: 0 done, 1 a run that failed, 2 bad input (configuration, checkpoint,
+scheduler), 130 interrupted (resume with ``--resume --out DIR``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from sdbc_evolution.checkpoint import CheckpointError
+from sdbc_evolution.config import (
+    ConfigError,
+    ExperimentConfig,
+    Treatment,
+    load_config,
+    quickstart_config,
+)
+from sdbc_evolution.evaluators import (
+    DEFAULT_CONNECT_TIMEOUT,
+    SchedulerUnreachable,
+    make_evaluator,
+)
+from sdbc_evolution.experiment import Experiment, ExperimentError, task_spec
+from sdbc_evolution.results import CONFIG_FILE, read_generations
+
+RESULTS_ROOT = Path("results")
+"""Where runs go when ``--out`` is not given."""
+GIF_NAME = "best.gif"
+"""The best individual's trial, rendered in the output directory."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sdbc-evolve",
+        description=(
+            "Evolve robot-team controllers with novelty search and systematically "
+            "derived behaviour characterisations (Gomes, Mariano & Christensen, "
+            "ALIFE 2014). Without --config: a quick-start experiment (NS-SD+ on gate "
+            "escape, a few minutes on two cores)."
+        ),
+    )
+    parser.add_argument("--config", type=Path, help="YAML experiment configuration")
+    parser.add_argument("--task", help="task name (gate_escape, resource_sharing, ...)")
+    parser.add_argument(
+        "--treatment", choices=[t.value for t in Treatment], help="treatment"
+    )
+    parser.add_argument("--generations", type=int, help="generations to run")
+    parser.add_argument("--population", type=int, help="population size")
+    parser.add_argument("--trials", type=int, help="trials per individual")
+    parser.add_argument("--seed", type=int, help="seed of the run")
+    parser.add_argument(
+        "--out", type=Path, help=f"output directory (default: {RESULTS_ROOT}/<name>)"
+    )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --out from its checkpoint",
+    )
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers", type=int, help="local worker processes (default: every core)"
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="evaluate on a Dask cluster instead"
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=DEFAULT_CONNECT_TIMEOUT,
+        help="seconds to wait for the Dask scheduler",
+    )
+    parser.add_argument("--no-gif", action="store_true", help="skip the GIF at the end")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def resolve_config(args: argparse.Namespace) -> ExperimentConfig:
+    """The run's configuration: a file (given, or the run's own when resuming), or
+    the quick-start one, with the command line's flags on top."""
+    if args.resume and args.out is None:
+        raise ConfigError("--resume needs --out DIR, the run to continue")
+    if args.config is not None:
+        config = load_config(args.config)
+    elif args.resume:
+        if not (args.out / CONFIG_FILE).is_file():
+            raise CheckpointError(f"--resume: {args.out} holds no run ({CONFIG_FILE})")
+        config = load_config(args.out / CONFIG_FILE)
+    else:
+        config = quickstart_config()
+    changes: dict = {}
+    for flag in ("task", "treatment", "generations", "seed"):
+        value = getattr(args, flag)
+        if value is not None:
+            changes[flag] = value
+    if args.population is not None:
+        changes["ga"] = dataclasses.replace(config.ga, population_size=args.population)
+    if args.trials is not None:
+        changes["evaluation"] = dataclasses.replace(
+            config.evaluation, trials=args.trials
+        )
+    try:
+        return config.replace(**changes).resolved()
+    except (TypeError, ValueError) as error:
+        raise ConfigError(str(error)) from None
+
+
+def default_out(config: ExperimentConfig) -> Path:
+    """``results/<task>-<treatment>-seed<seed>``, numbered if already taken."""
+    base = RESULTS_ROOT / f"{config.task}-{config.treatment.value}-seed{config.seed}"
+    if not base.exists():
+        return base
+    n = 2
+    while (candidate := base.with_name(f"{base.name}-{n}")).exists():
+        n += 1
+    return candidate
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        config = resolve_config(args)
+        if args.workers is not None and args.workers < 1:
+            raise ConfigError(f"--workers: must be at least 1, got {args.workers}")
+        out = args.out if args.out is not None else default_out(config)
+        evaluator = make_evaluator(
+            task_spec(config),
+            workers=args.workers,
+            scheduler=args.scheduler,
+            timeout=args.connect_timeout,
+        )
+    except (ConfigError, CheckpointError, SchedulerUnreachable, ValueError) as error:
+        print(f"sdbc-evolve: error: {error}", file=sys.stderr)
+        return 2
+    with evaluator:
+        try:
+            if args.resume:
+                experiment = Experiment.resume(config, out, evaluator)
+            else:
+                experiment = Experiment.create(config, out, evaluator)
+        except (CheckpointError, ExperimentError, ValueError) as error:
+            print(f"sdbc-evolve: error: {error}", file=sys.stderr)
+            return 2
+        status = _run(experiment, out, quiet=args.quiet)
+    if status == 0:
+        _report(experiment, out, gif=not args.no_gif)
+    return status
+
+
+def _run(experiment: Experiment, out: Path, quiet: bool) -> int:
+    from tqdm import tqdm
+
+    config = experiment.config
+    bar = tqdm(
+        total=experiment.generations,
+        initial=experiment.state.generation,
+        desc=f"{config.task} {config.treatment.value}",
+        unit="gen",
+        disable=quiet,
+        dynamic_ncols=True,
+    )
+    best = -np.inf
+
+    def progress(record) -> None:
+        nonlocal best
+        best = max(best, record.best_fitness)
+        bar.set_postfix(gen=record.generation, best=f"{best:.4f}", refresh=False)
+        bar.update(1)
+
+    try:
+        experiment.run(progress)
+    except KeyboardInterrupt:
+        bar.close()
+        print(
+            f"\ninterrupted after generation {experiment.state.generation}; "
+            f"resume with:\n  sdbc-evolve --resume --out {out}",
+            file=sys.stderr,
+        )
+        return 130
+    bar.close()
+    return 0
+
+
+def _report(experiment: Experiment, out: Path, gif: bool) -> None:
+    generations = read_generations(out)
+    score = generations["reevaluated_fitness"]
+    if np.isnan(score).all():
+        score = generations["best_fitness"]
+    g = int(np.nanargmax(score))
+    genome = np.load(out / "best_genomes.npy")[g]
+    print(f"results: {out.resolve()}")
+    print(
+        f"best individual: generation {g}, fitness {generations['best_fitness'][g]:.4f}"
+        + (
+            f", re-evaluated {generations['reevaluated_fitness'][g]:.4f}"
+            if not np.isnan(generations["reevaluated_fitness"][g])
+            else ""
+        )
+    )
+    if not gif:
+        return
+    from sdbc_sim.render import render_trial
+
+    path = out / GIF_NAME
+    render_trial(
+        task_spec(experiment.config).build(), genome, experiment.config.seed, path
+    )
+    print(f"its trial: {path.resolve()}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

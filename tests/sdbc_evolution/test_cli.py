@@ -1,0 +1,140 @@
+"""The command line: runs, resumes, and bad input that exits 2 with a clear message."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from sdbc_evolution.cli import main
+from sdbc_evolution.config import (
+    ExperimentConfig,
+    config_from_dict,
+    load_config,
+    quickstart_config,
+)
+from sdbc_evolution.results import read_generations
+
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
+
+TINY = """\
+task: gate_escape
+task_config: {max_steps: 60}
+treatment: ns-ts
+generations: 2
+ga: {population_size: 6, elites: 1, tournament_size: 2}
+novelty: {k: 3}
+evaluation: {trials: 2, reevaluation_trials: 2}
+"""
+
+
+@pytest.fixture
+def tiny(tmp_path: Path) -> Path:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(TINY)
+    return path
+
+
+def run_cli(*args: str) -> int:
+    return main([*args, "--no-gif", "--quiet", "--workers", "1"])
+
+
+def snapshot(out: Path) -> dict[str, bytes]:
+    return {str(p): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+def test_run_then_resume_for_more_generations(
+    tmp_path: Path, tiny: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    assert run_cli("--config", str(tiny), "--out", str(out), "--seed", "4") == 0
+    printed = capsys.readouterr().out
+    assert f"results: {out.resolve()}" in printed and "best individual" in printed
+    assert len(read_generations(out)["generation"]) == 2
+    assert load_config(out / "config.yaml").seed == 4
+    assert run_cli("--resume", "--out", str(out), "--generations", "3") == 0
+    assert read_generations(out)["generation"].tolist() == [0, 1, 2]
+    assert load_config(out / "config.yaml").generations == 3
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--population", "1"], "ga.population_size: must be at least 2"),
+        (["--generations", "0"], "generations: must be at least 1"),
+        (["--task", "gate_scape"], "unknown task 'gate_scape'"),
+        (
+            ["--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "0.5"],
+            "no Dask scheduler answered",
+        ),
+    ],
+)
+def test_bad_input_exits_2_naming_the_problem(
+    tmp_path: Path,
+    tiny: Path,
+    capsys: pytest.CaptureFixture[str],
+    args: list[str],
+    message: str,
+) -> None:
+    argv = [
+        "--config",
+        str(tiny),
+        "--out",
+        str(tmp_path / "x"),
+        "--no-gif",
+        "--quiet",
+        *args,
+    ]
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_resume_needs_the_run_directory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["--resume", "--no-gif"]) == 2
+    assert "--resume needs --out" in capsys.readouterr().err
+    assert main(["--resume", "--out", str(tmp_path / "nothing"), "--no-gif"]) == 2
+    assert "holds no run" in capsys.readouterr().err
+
+
+def test_bad_config_file_names_the_key(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("task: gate_escape\nga: {elite: 3}\n")
+    assert run_cli("--config", str(bad), "--out", str(tmp_path / "x")) == 2
+    assert "ga.elite" in capsys.readouterr().err
+
+
+def test_corrupt_or_foreign_checkpoints_exit_2_and_change_nothing(
+    tmp_path: Path, tiny: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    assert run_cli("--config", str(tiny), "--out", str(out)) == 0
+    capsys.readouterr()
+    before = snapshot(out)
+    assert run_cli("--config", str(tiny), "--out", str(out)) == 2
+    assert "already holds a run" in capsys.readouterr().err
+    assert run_cli("--resume", "--out", str(out), "--population", "8") == 2
+    assert "ga.population_size: 6 in the checkpoint, 8 now" in capsys.readouterr().err
+    assert run_cli("--resume", "--out", str(out), "--task", "predator_prey") == 2
+    assert "from task 'gate_escape'" in capsys.readouterr().err
+    assert snapshot(out) == before
+    checkpoint = out / "checkpoint.npz"
+    checkpoint.write_bytes(checkpoint.read_bytes()[:100])
+    before = snapshot(out)
+    assert run_cli("--resume", "--out", str(out), "--generations", "3") == 2
+    assert "corrupt checkpoint" in capsys.readouterr().err
+    assert snapshot(out) == before
+
+
+def test_the_quickstart_file_is_the_quickstart_config() -> None:
+    assert load_config(CONFIGS / "quickstart.yaml") == quickstart_config()
+
+
+@pytest.mark.parametrize("task", ["gate_escape", "resource_sharing", "predator_prey"])
+def test_paper_configs_are_spec_defaults(task: str) -> None:
+    config = load_config(CONFIGS / "paper" / f"{task}.yaml")
+    assert config == ExperimentConfig(task=task).resolved()
+    assert config == config_from_dict({"task": task}).resolved()
