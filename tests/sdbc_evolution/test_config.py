@@ -28,7 +28,8 @@ def test_defaults_are_spec_numbers() -> None:
         config.novelty.archive_probability,
         config.novelty.archive_size,
     ) == (15, 0.03, 1000)
-    assert config.characterisation.delta == 0.25
+    assert config.weighting.delta == 0.25 and config.weighting.fitness_clusters == 10
+    assert config.weighting.update_every == 1 and config.standardisation.clip == 3.0
     assert (config.evaluation.trials, config.evaluation.reevaluation_trials) == (10, 50)
     for task, generations in (
         ("gate_escape", 500),
@@ -76,7 +77,11 @@ def test_yaml_round_trip(tmp_path: Path) -> None:
         ({"novelty": {"k": 0}}, r"novelty\.k"),
         ({"novelty": {"tie_break": "random"}}, r"novelty\.tie_break"),
         ({"novelty": {"archive_probability": -0.1}}, r"novelty\.archive_probability"),
-        ({"characterisation": {"fitness_clusters": 1}}, r"characterisation\.fitness"),
+        ({"weighting": {"fitness_clusters": 1}}, r"weighting: fitness_clusters 1"),
+        ({"weighting": {"feature_discretisation": "x"}}, r"weighting\.feature_disc"),
+        ({"weighting": {"delta": -1}}, r"^weighting: delta -1"),
+        ({"standardisation": {"clip": 0}}, r"^standardisation: clip 0"),
+        ({"characterisation": {"delta": 1}}, r"unknown key.*characterisation"),
         ({"evaluation": {"trials": 0}}, r"evaluation\.trials"),
         ({"treatment": "ns-xx"}, r"treatment: 'ns-xx' is not one of"),
         ({"generations": 0}, r"generations: must be at least 1"),

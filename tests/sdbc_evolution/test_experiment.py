@@ -83,7 +83,7 @@ def assert_same_run(a: Path, b: Path) -> None:
             np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)
 
 
-@pytest.mark.parametrize("treatment", ["fit", "ns-ts"])
+@pytest.mark.parametrize("treatment", TREATMENTS)
 def test_a_run_writes_the_documented_layout(tmp_path: Path, treatment: str) -> None:
     config = small_config(treatment)
     run(config, tmp_path)
@@ -93,7 +93,15 @@ def test_a_run_writes_the_documented_layout(tmp_path: Path, treatment: str) -> N
     assert rows[0][-5:] == [f"weight:Toy feature {i}" for i in range(5)]
     assert [r[0] for r in rows[1:]] == ["0", "1", "2", "3", "4"]
     generations = read_generations(tmp_path)
-    assert np.isnan(generations["weight:Toy feature 0"]).all()
+    weights = np.column_stack(
+        [generations[f"weight:Toy feature {i}"] for i in range(5)]
+    )
+    if treatment == "ns-sd+":
+        assert (weights >= 0.25).all() and (weights[:, :4] > 0.25).all()
+        # Dimension 4 is constant: no information, the floor weight delta.
+        assert (weights[:, 4] == 0.25).all()
+    else:
+        assert np.isnan(weights).all()
     assert (generations["reevaluated_fitness"] > 0).all()
     assert np.isnan(generations["best_novelty"]).all() == (treatment == "fit")
     archive_sizes = generations["archive_size"]
@@ -144,7 +152,7 @@ def test_fitness_improves_on_the_toy_problem(tmp_path: Path) -> None:
     assert g["best_fitness"][-5:].mean() > 1.5 * g["best_fitness"][0]
 
 
-@pytest.mark.parametrize("treatment", ["fit", "ns-ts"])
+@pytest.mark.parametrize("treatment", TREATMENTS)
 def test_resume_is_bit_identical(tmp_path: Path, treatment: str) -> None:
     run(small_config(treatment, generations=5), tmp_path / "straight")
     run(small_config(treatment, generations=2), tmp_path / "resumed")

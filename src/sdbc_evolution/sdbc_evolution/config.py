@@ -1,8 +1,8 @@
 """Typed configuration of an evolutionary experiment, loaded from YAML.
 
 Every number of SPEC.md's "Evolution" section is a default here, in one place. A
-YAML file mirrors the dataclasses (sections ``ga``, ``novelty``, ``characterisation``,
-``evaluation``, plus top-level ``task``, ``task_config``, ``treatment``,
+YAML file mirrors the dataclasses (sections ``ga``, ``novelty``, ``standardisation``,
+``weighting``, ``evaluation``, plus top-level ``task``, ``task_config``, ``treatment``,
 ``generations`` and ``seed``); keys left out keep their defaults. Unknown keys,
 wrong types and out-of-range values raise :class:`ConfigError` naming the key, before
 any work runs.
@@ -28,6 +28,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
+from sdbc_evolution.sdbc.standardise import StandardisationSettings
+from sdbc_evolution.sdbc.weighting import WeightingSettings
 
 
 class ConfigError(ValueError):
@@ -152,42 +155,6 @@ class NoveltyConfig:
 
 
 @dataclass(frozen=True)
-class CharacterisationConfig:
-    """Standardisation and weighting of the SDBC (NS-SD, NS-SD+)."""
-
-    clip: float = 3.0
-    """Standardised values are clipped to [-clip, clip]."""
-    delta: float = 0.25
-    """NS-SD+ weight floor: weight_k = delta + I(F; k)."""
-    fitness_clusters: int = 10
-    """k-means clusters that discretise fitness for the mutual information."""
-    weight_interval: int = 1
-    """NS-SD+ recomputes its weights every this many generations."""
-
-    def __post_init__(self) -> None:
-        _check(
-            math.isfinite(self.clip) and self.clip > 0,
-            "characterisation.clip",
-            "must be positive",
-        )
-        _check(
-            math.isfinite(self.delta) and self.delta >= 0,
-            "characterisation.delta",
-            "must be >= 0",
-        )
-        _check(
-            self.fitness_clusters >= 2,
-            "characterisation.fitness_clusters",
-            "must be at least 2",
-        )
-        _check(
-            self.weight_interval >= 1,
-            "characterisation.weight_interval",
-            "must be at least 1",
-        )
-
-
-@dataclass(frozen=True)
 class EvaluationConfig:
     """How individuals are evaluated."""
 
@@ -233,10 +200,12 @@ class ExperimentConfig:
     """The GA."""
     novelty: NoveltyConfig = field(default_factory=NoveltyConfig)
     """Novelty metric, archive and ranking."""
-    characterisation: CharacterisationConfig = field(
-        default_factory=CharacterisationConfig
+    standardisation: StandardisationSettings = field(
+        default_factory=StandardisationSettings
     )
-    """SDBC standardisation and weighting."""
+    """SDBC standardisation (NS-SD, NS-SD+): clip, SD estimator."""
+    weighting: WeightingSettings = field(default_factory=WeightingSettings)
+    """NS-SD+ weights: delta, discretisation, how often they are recomputed."""
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     """Trials and re-evaluation."""
 
@@ -329,6 +298,11 @@ def _coerce(value: Any, annotation: Any, key: str) -> Any:
                 last = error
         assert last is not None
         raise last
+    if origin is typing.Literal:
+        allowed = typing.get_args(annotation)
+        if value not in allowed:
+            raise ConfigError(f"{key}: {value!r} is not one of {list(allowed)}")
+        return value
     if dataclasses.is_dataclass(annotation):
         return _from_mapping(annotation, value, key)
     if isinstance(annotation, type) and issubclass(annotation, Enum):
@@ -386,7 +360,10 @@ def _from_mapping(cls: type, data: Any, prefix: str) -> Any:
     except ConfigError:
         raise
     except (TypeError, ValueError) as error:
-        raise ConfigError(f"{where}: {error}") from None
+        message = str(error)
+        if not message.startswith(f"{where}:"):
+            message = f"{where}: {message}"
+        raise ConfigError(message) from None
 
 
 def config_from_dict(data: Any) -> ExperimentConfig:

@@ -247,7 +247,8 @@ class Experiment:
             g,
             state.rng,
             config.novelty,
-            config.characterisation,
+            config.standardisation,
+            config.weighting,
         )
         children, parent, elite = self._breed(population, scores)
         best = int(np.argmax(evaluation.fitness))

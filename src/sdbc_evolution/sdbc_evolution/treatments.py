@@ -4,10 +4,10 @@
 - **NS-TS**: novelty on the task-specific characterisation (each value already in
   [0, 1], used as it is, as in the authors' code).
 - **NS-SD**: novelty on the SDBC, z-scored against population + archive and clipped
-  to +-clip (unweighted).
+  to +-clip (unweighted; ``sdbc_evolution.sdbc.standardise``).
 - **NS-SD+**: as NS-SD, each dimension k multiplied by w_k = delta + I(F; k), the
   mutual information between that raw feature and fitness in the current
-  population, recomputed every ``weight_interval`` generations.
+  population, recomputed every ``weighting.update_every`` generations.
 
 Every novelty treatment then scores novelty against population + archive (k nearest
 neighbours), offers the generation to the archive (raw vectors), and ranks on
@@ -25,10 +25,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from sdbc_evolution.archive import NoveltyArchive
-from sdbc_evolution.config import CharacterisationConfig, NoveltyConfig, Treatment
+from sdbc_evolution.config import NoveltyConfig, Treatment
 from sdbc_evolution.evaluators import Evaluation
 from sdbc_evolution.novelty import novelty_scores
 from sdbc_evolution.ranking import nsga2_order
+from sdbc_evolution.sdbc.standardise import StandardisationSettings, standardise
+from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information_weights
 from sdbc_evolution.selection import fitness_order
 
 SEED_BOUND = 2**31 - 1
@@ -73,7 +75,8 @@ def score_generation(
     generation: int,
     rng: np.random.Generator,
     novelty: NoveltyConfig,
-    characterisation: CharacterisationConfig,
+    standardisation: StandardisationSettings,
+    weighting: WeightingSettings,
 ) -> GenerationScores:
     """Scores and ranks one evaluated generation, updating the archive.
 
@@ -85,7 +88,8 @@ def score_generation(
         generation: Index of this generation (0-based).
         rng: The GA's generator.
         novelty: Novelty settings.
-        characterisation: Standardisation and weighting settings.
+        standardisation: SDBC standardisation settings (NS-SD, NS-SD+).
+        weighting: NS-SD+ weighting settings.
     """
     fitness = evaluation.fitness
     n = fitness.shape[0]
@@ -101,16 +105,12 @@ def score_generation(
     if treatment is Treatment.NS_TS:
         population, archived_vectors = raw, archive.behaviours
     else:
-        from sdbc_evolution.sdbc.standardise import standardise
-
         population, archived_vectors = standardise(
-            raw,
-            archive.behaviours.reshape(-1, raw.shape[1]),
-            clip=characterisation.clip,
+            raw, archive.behaviours, standardisation
         )
     if treatment is Treatment.NS_SD_PLUS:
-        if weights is None or generation % characterisation.weight_interval == 0:
-            weights = sdbc_weights(raw, fitness, characterisation, rng)
+        if weights is None or generation % weighting.update_every == 0:
+            weights = sdbc_weights(raw, fitness, weighting, rng)
         population = population * weights
         archived_vectors = archived_vectors * weights
     else:
@@ -128,23 +128,15 @@ def score_generation(
 def sdbc_weights(
     raw: np.ndarray,
     fitness: np.ndarray,
-    characterisation: CharacterisationConfig,
+    weighting: WeightingSettings,
     rng: np.random.Generator,
 ) -> np.ndarray:
     """NS-SD+ weights w_k = delta + I(F; k) on the current population.
 
-    Draws one integer from ``rng`` to seed the k-means that discretises fitness.
+    Draws exactly one integer from ``rng`` to seed the k-means discretisation,
+    whether or not k-means ends up running.
     """
-    from sdbc_evolution.sdbc.weighting import mutual_information_weights
-
     seed = int(rng.integers(SEED_BOUND))
     return np.asarray(
-        mutual_information_weights(
-            raw,
-            fitness,
-            delta=characterisation.delta,
-            fitness_clusters=characterisation.fitness_clusters,
-            random_state=seed,
-        ),
-        dtype=np.float64,
+        mutual_information_weights(raw, fitness, weighting, seed), dtype=np.float64
     )
