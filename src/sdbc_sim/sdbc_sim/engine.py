@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sdbc_sim.network import RowNetworks, check_genomes
+from sdbc_sim.network import TeamNetworks, check_genomes
 from sdbc_sim.observer import Observer
 from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
 from sdbc_sim.task import BodyState, Task
@@ -99,14 +99,12 @@ class BatchSimulation:
         layout = task.layout
         self._n_bodies = layout.n_bodies
         self._n_ctrl = layout.n_controlled
-        self._networks: RowNetworks | None = None
+        self._networks: TeamNetworks | None = None
         if genomes is not None:
             g = check_genomes(genomes, task.network)
             if g.shape[0] != n:
                 raise ValueError(f"genomes: {g.shape[0]} genomes for {n} trials")
-            self._networks = RowNetworks(
-                task.network, np.repeat(g, self._n_ctrl, axis=0)
-            )
+            self._networks = TeamNetworks(task.network, g, self._n_ctrl)
         rngs = [np.random.default_rng(int(s)) for s in seeds]
         self.trials, position, angle = task.reset(rngs)
         if position.shape != (n, self._n_bodies, 2) or angle.shape != (
@@ -129,6 +127,8 @@ class BatchSimulation:
         self._rows = np.empty((n * self._n_bodies, READ_WIDTH))
         self._turn_rate = np.zeros((n, self._n_bodies))
         self.spaces.read(self._rows)
+        self._cos = np.cos(self._rows[:, 2]).reshape(n, self._n_bodies)
+        self._sin = np.sin(self._rows[:, 2]).reshape(n, self._n_bodies)
         self.bodies = self._body_views(np.ones((n, self._n_bodies), dtype=bool))
         self._enabled = self.bodies.enabled.copy()
         self._running = np.ones(n, dtype=bool)
@@ -158,6 +158,8 @@ class BatchSimulation:
             angle=rows[:, 2].reshape(b, r),
             velocity=rows[:, 3:5].reshape(b, r, 2),
             angular_velocity=self._turn_rate,
+            cos_angle=self._cos,
+            sin_angle=self._sin,
             enabled=enabled,
         )
 
@@ -181,8 +183,7 @@ class BatchSimulation:
         if outputs is None:
             if self._networks is None:
                 raise ValueError("step: this simulation has no genomes; pass outputs")
-            x = self.sensors().reshape(n_live * self._n_ctrl, -1)
-            outputs = self._networks.forward(x).reshape(shape)
+            outputs = self._networks.forward(self.sensors())
         else:
             outputs = np.asarray(outputs, dtype=np.float64)
             if outputs.shape != shape:
@@ -233,17 +234,20 @@ class BatchSimulation:
         """
         dt = self.settings.physics.dt
         moving = self.bodies.enabled & self._running[:, None]
-        np.multiply(turn, moving, out=self._turn_rate)
-        self._turn_rate /= dt
-        heading = (self.bodies.angle + self._turn_rate * dt).reshape(-1)
+        turn = turn * moving
+        np.divide(turn, dt, out=self._turn_rate)
+        heading = self.bodies.angle + turn
+        # Chipmunk keeps the angle set here, so these serve the next sensors too.
+        np.cos(heading, out=self._cos)
+        np.sin(heading, out=self._sin)
         v = (speed * moving).reshape(-1)
         rows = self._rows
         drive = np.empty((rows.shape[0], WRITE_WIDTH))
-        drive[:, 0] = heading
+        drive[:, 0] = heading.reshape(-1)
         drive[:, 1] = 0.0
         mass = self.spaces.masses / dt
-        drive[:, 2] = (v * np.cos(heading) - rows[:, 3]) * mass
-        drive[:, 3] = (v * np.sin(heading) - rows[:, 4]) * mass
+        drive[:, 2] = (v * self._cos.reshape(-1) - rows[:, 3]) * mass
+        drive[:, 3] = (v * self._sin.reshape(-1) - rows[:, 4]) * mass
         return drive
 
     def _compact_if_worthwhile(self) -> None:
@@ -258,12 +262,14 @@ class BatchSimulation:
         body_rows = np.repeat(keep, self._n_bodies)
         self._rows = self._rows[body_rows]
         self._turn_rate = self._turn_rate[rows]
+        self._cos = self._cos[rows]
+        self._sin = self._sin[rows]
         self.bodies = self._body_views(self.bodies.enabled[rows])
         self._enabled = self._enabled[rows]
         self._running = self._running[rows]
         self._took_step = self._took_step[rows]
         if self._networks is not None:
-            self._networks.take(np.flatnonzero(np.repeat(keep, self._n_ctrl)))
+            self._networks.take(rows)
 
     def state(self) -> TaskState:
         """The task state of the whole batch after the last step.

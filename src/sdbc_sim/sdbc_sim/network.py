@@ -87,61 +87,80 @@ def sigmoid(a: np.ndarray) -> np.ndarray:
     return a
 
 
-class RowNetworks:
-    """One network per row (robot) of a batch, evaluated together.
+class TeamNetworks:
+    """The networks of a batch of teams: every robot of trial b runs genome b.
 
-    Weights are stored per row, input-major, so that each step is a short fixed
-    sequence of multiply-adds over contiguous (rows, units) arrays.
+    Weights are copied per robot and stored source-unit-major with the robots
+    innermost, (inputs, units, robots): a layer is then a short fixed sequence of
+    multiply-adds over long contiguous rows, whatever the layer sizes.
 
     Args:
         shape: The layer sizes.
-        genomes: (R, W) float64, the genome of each row; already checked.
+        genomes: (B, W) float64, the genome of each trial; already checked.
+        team_size: N, robots per trial.
     """
 
-    def __init__(self, shape: NetworkShape, genomes: np.ndarray) -> None:
+    def __init__(
+        self, shape: NetworkShape, genomes: np.ndarray, team_size: int
+    ) -> None:
         self.shape = shape
+        self.team_size = team_size
         n_in, n_hid, n_out = shape.n_inputs, shape.n_hidden, shape.n_outputs
-        rows = genomes.shape[0]
+        b = genomes.shape[0]
         split = (n_in + 1) * n_hid
-        hidden = genomes[:, :split].reshape(rows, n_hid, n_in + 1)
-        output = genomes[:, split:].reshape(rows, n_out, n_hid + 1)
-        # (I, R, H) and (H, R, O): one contiguous (R, units) slab per source unit.
-        self.w_hidden = np.ascontiguousarray(hidden[:, :, :n_in].transpose(2, 0, 1))
-        self.b_hidden = np.ascontiguousarray(hidden[:, :, n_in])
-        self.w_output = np.ascontiguousarray(output[:, :, :n_hid].transpose(2, 0, 1))
-        self.b_output = np.ascontiguousarray(output[:, :, n_hid])
+        hidden = genomes[:, :split].reshape(b, n_hid, n_in + 1)
+        output = genomes[:, split:].reshape(b, n_out, n_hid + 1)
+        self.w_hidden = _per_robot(hidden[:, :, :n_in].transpose(2, 1, 0), team_size)
+        self.b_hidden = _per_robot(hidden[:, :, n_in].T, team_size)
+        self.w_output = _per_robot(output[:, :, :n_hid].transpose(2, 1, 0), team_size)
+        self.b_output = _per_robot(output[:, :, n_hid].T, team_size)
 
-    @property
-    def rows(self) -> int:
-        """Number of rows (robots)."""
-        return self.b_hidden.shape[0]
-
-    def take(self, rows: np.ndarray) -> None:
-        """Keeps only ``rows`` (index array), in that order."""
-        self.w_hidden = np.ascontiguousarray(self.w_hidden[:, rows])
-        self.b_hidden = self.b_hidden[rows]
-        self.w_output = np.ascontiguousarray(self.w_output[:, rows])
-        self.b_output = self.b_output[rows]
+    def take(self, trials: np.ndarray) -> None:
+        """Keeps only ``trials`` (index array), in that order."""
+        n = self.team_size
+        robots = (trials[:, None] * n + np.arange(n)).ravel()
+        self.w_hidden = np.ascontiguousarray(self.w_hidden[..., robots])
+        self.b_hidden = np.ascontiguousarray(self.b_hidden[..., robots])
+        self.w_output = np.ascontiguousarray(self.w_output[..., robots])
+        self.b_output = np.ascontiguousarray(self.b_output[..., robots])
 
     def forward(self, x: np.ndarray) -> np.ndarray:
-        """Outputs (R, O) in [0, 1] for inputs ``x`` (R, I)."""
-        h = _layer(x, self.w_hidden, self.b_hidden)
-        return _layer(h, self.w_output, self.b_output)
+        """Outputs (B, N, O) in [0, 1] for inputs ``x`` (B, N, I)."""
+        b, n, n_in = x.shape
+        xt = np.ascontiguousarray(x.reshape(b * n, n_in).T)
+        h = _layer(xt, self.w_hidden, self.b_hidden)
+        o = _layer(h, self.w_output, self.b_output)
+        return o.T.reshape(b, n, -1)
+
+
+def _per_robot(a: np.ndarray, team_size: int) -> np.ndarray:
+    """(..., B) per-trial values as a contiguous (..., B N) per-robot array."""
+    return np.ascontiguousarray(np.repeat(a, team_size, axis=-1))
 
 
 def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """sigma(b + sum_i w[i] x_i) for a layer stored source-unit-major."""
+    """sigma(b + sum_i w[i] x[i]), summed in index order.
+
+    Args:
+        x: (I, R) source unit values per robot.
+        w: (I, U, R) weights.
+        b: (U, R) biases.
+
+    Returns:
+        (U, R) unit values.
+    """
     a = b.copy()
     tmp = np.empty_like(a)
     for i in range(w.shape[0]):
-        np.multiply(w[i], x[:, i : i + 1], out=tmp)
+        np.multiply(w[i], x[i], out=tmp)
         a += tmp
     return sigmoid(a)
 
 
 def forward(genome: np.ndarray, shape: NetworkShape, x: np.ndarray) -> np.ndarray:
-    """Outputs (R, O) of one genome (W,) for inputs ``x`` (R, I); same arithmetic
-    as :class:`RowNetworks`, so a controller run live matches the batch bit for bit."""
+    """Outputs (N, O) of one team's genome (W,) for its robots' inputs ``x``
+    (N, I); the same arithmetic as :class:`TeamNetworks`, so a controller run
+    live matches the batch bit for bit."""
     g = check_genomes(np.asarray(genome, dtype=np.float64)[None, :], shape)
     x = np.asarray(x, dtype=np.float64)
-    return RowNetworks(shape, np.repeat(g, x.shape[0], axis=0)).forward(x)
+    return TeamNetworks(shape, g, x.shape[0]).forward(x[None])[0]

@@ -2,7 +2,12 @@
 
 Everything here is element-wise numpy over whole batches, in trial-local
 coordinates. Angles are in radians, counter-clockwise; a robot's *bearing* to a
-point is the angle of the point in the robot's frame, in [-pi, pi).
+point is the angle of the point in the robot's frame, in [-pi, pi].
+
+Sums and minima over the few robots of a trial run as a fixed sequence of
+element-wise operations (:func:`robot_sum`, :func:`robot_min`): numpy's own
+reductions pick their summation order from the memory layout, which could make a
+trial's numbers depend on the size of its batch, and are slow over short axes.
 
 Sensor readings follow the authors' convention (MASE): a distance d sensed with
 range r reads ``2 d / r - 1`` in [-1, 1], and 1 when nothing is in range.
@@ -15,15 +20,43 @@ import numpy as np
 TWO_PI = 2.0 * np.pi
 
 
+def robot_sum(a: np.ndarray, axis: int = 1) -> np.ndarray:
+    """Sum over a short axis, always in index order: ((a_0 + a_1) + a_2) + ..."""
+    a = np.moveaxis(a, axis, 0)
+    total = a[0].copy()
+    for k in range(1, a.shape[0]):
+        total += a[k]
+    return total
+
+
+def robot_min(a: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Minimum over a short axis, as a chain of element-wise minima."""
+    a = np.moveaxis(a, axis, 0)
+    low = a[0].copy()
+    for k in range(1, a.shape[0]):
+        np.minimum(low, a[k], out=low)
+    return low
+
+
+def norm(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """sqrt(dx^2 + dy^2) (np.hypot guards against overflow we never meet, slowly)."""
+    d = dx * dx
+    d += dy * dy
+    return np.sqrt(d, out=d)
+
+
 def wrap_angle(a: np.ndarray) -> np.ndarray:
     """Angles wrapped to [-pi, pi)."""
     return np.mod(a + np.pi, TWO_PI) - np.pi
 
 
-def bearing(dx: np.ndarray, dy: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """Bearing in [-pi, pi) of the vector (dx, dy) seen from a robot facing
-    ``heading``: wrap(atan2(dy, dx) - heading)."""
-    return wrap_angle(np.arctan2(dy, dx) - heading)
+def bearing(
+    dx: np.ndarray, dy: np.ndarray, cos_h: np.ndarray, sin_h: np.ndarray
+) -> np.ndarray:
+    """Bearing in [-pi, pi] of the vector (dx, dy) seen from a robot whose heading
+    has cosine ``cos_h`` and sine ``sin_h``: the angle of the vector rotated into
+    the robot's frame, atan2(-dx sin h + dy cos h, dx cos h + dy sin h)."""
+    return np.arctan2(dy * cos_h - dx * sin_h, dx * cos_h + dy * sin_h)
 
 
 def normalised_reading(d: np.ndarray, sensor_range: float) -> np.ndarray:
@@ -45,18 +78,19 @@ def pairwise_offsets(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     y = pos[..., 1]
     dx = x[:, None, :] - x[:, :, None]
     dy = y[:, None, :] - y[:, :, None]
-    return dx, dy, np.hypot(dx, dy)
+    return dx, dy, norm(dx, dy)
 
 
 def arc_index(bearings: np.ndarray, n_arcs: int) -> np.ndarray:
-    """Which of ``n_arcs`` equal sectors holds each bearing.
+    """Which of ``n_arcs`` equal sectors holds each bearing in [-pi, pi].
 
     Sector j is centred on bearing -pi + j 2 pi / n_arcs, so with 4 arcs sector 0
     looks back, 1 right, 2 ahead and 3 left, as in the authors' code.
     """
     width = TWO_PI / n_arcs
-    idx = np.floor((bearings + (np.pi + 0.5 * width)) / width).astype(np.intp)
-    return np.mod(idx, n_arcs, out=idx)
+    idx = ((bearings + (np.pi + 0.5 * width)) * (1.0 / width)).astype(np.intp)
+    idx[idx >= n_arcs] -= n_arcs
+    return idx
 
 
 def arc_minimum(
@@ -76,7 +110,7 @@ def arc_minimum(
     """
     out = np.empty((*readings.shape[:-1], n_arcs))
     for j in range(n_arcs):
-        np.min(np.where(arcs == j, readings, empty), axis=-1, out=out[..., j])
+        out[..., j] = robot_min(np.where(arcs == j, readings, empty))
     return np.minimum(out, empty, out=out)
 
 
@@ -99,19 +133,19 @@ def ray_segment_distance(
     Returns:
         (M,) distance t of the nearest hit, inf where the ray hits nothing.
     """
-    a = segments[:, 0, :]
-    ex = segments[:, 1, 0] - a[:, 0]
-    ey = segments[:, 1, 1] - a[:, 1]
-    wx = a[None, :, 0] - origins[:, 0:1]
-    wy = a[None, :, 1] - origins[:, 1:2]
-    ux = directions[:, 0:1]
-    uy = directions[:, 1:2]
-    denom = ux * ey - uy * ex
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (wx * ey - wy * ex) / denom
-        s = (wx * uy - wy * ux) / denom
-    hit = (t >= 0.0) & (t <= length) & (s >= 0.0) & (s <= 1.0)
-    return np.where(hit, t, np.inf).min(axis=1)
+    ox, oy = origins[:, 0], origins[:, 1]
+    ux, uy = directions[:, 0], directions[:, 1]
+    nearest = np.full(origins.shape[0], np.inf)
+    for (ax, ay), (bx, by) in segments.tolist():
+        ex, ey = bx - ax, by - ay
+        wx, wy = ax - ox, ay - oy
+        denom = ux * ey - uy * ex
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (wx * ey - wy * ex) / denom
+            s = (wx * uy - wy * ux) / denom
+        hit = (t >= 0.0) & (t <= length) & (s >= 0.0) & (s <= 1.0) & (t < nearest)
+        nearest[hit] = t[hit]
+    return nearest
 
 
 def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
@@ -126,10 +160,10 @@ def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarr
     """
     a = segments[:, 0, :]
     e = segments[:, 1, :] - a
-    ee = np.einsum("pk,pk->p", e, e)
+    ee = (e * e).sum(axis=-1)
     w = points[..., None, :] - a
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(ee > 0.0, np.einsum("...pk,pk->...p", w, e) / ee, 0.0)
+        s = np.where(ee > 0.0, (w * e).sum(axis=-1) / ee, 0.0)
     s = np.clip(s, 0.0, 1.0)
     d = w - s[..., None] * e
-    return np.hypot(d[..., 0], d[..., 1])
+    return norm(d[..., 0], d[..., 1])

@@ -120,6 +120,8 @@ class BodyState:
         velocity: (B, R, 2) linear velocities, units per step.
         angular_velocity: (B, R) turning speed, radians per step: the last turn.
         enabled: (B, R) bool; False once the task has switched a body off.
+        cos_angle: (B, R) cos(angle), kept by the engine (it needs it anyway).
+        sin_angle: (B, R) sin(angle).
     """
 
     position: np.ndarray
@@ -127,6 +129,8 @@ class BodyState:
     velocity: np.ndarray
     angular_velocity: np.ndarray
     enabled: np.ndarray
+    cos_angle: np.ndarray
+    sin_angle: np.ndarray
 
     @property
     def speed(self) -> np.ndarray:

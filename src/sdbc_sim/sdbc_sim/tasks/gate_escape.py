@@ -60,9 +60,11 @@ from sdbc_sim.sensors import (
     arc_index,
     arc_minimum,
     bearing,
+    norm,
     normalised_reading,
     pairwise_offsets,
     ray_segment_distance,
+    robot_sum,
 )
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -265,25 +267,27 @@ class GateEscape(Task):
         b = len(rngs)
         position = np.empty((b, n, 2))
         angle = np.empty((b, n))
+        gx, gy = self.gate_centre.tolist()
         for t, rng in enumerate(rngs):
+            placed: list[tuple[float, float]] = []
             for i in range(n):
                 ring = (i + 1) * c.start_spacing
                 for _ in range(_MAX_START_DRAWS):
                     a = rng.uniform(0.0, TWO_PI)
-                    p = self.gate_centre + ring * np.array([math.cos(a), math.sin(a)])
-                    inside = bool(np.all((p >= r) & (p <= s - r)))
-                    apart = i == 0 or bool(
-                        np.all(np.hypot(*(position[t, :i] - p).T) >= 2.0 * r)
-                    )
-                    if inside and apart:
+                    px, py = gx + ring * math.cos(a), gy + ring * math.sin(a)
+                    inside = r <= px <= s - r and r <= py <= s - r
+                    if inside and all(
+                        math.dist(q, (px, py)) >= 2.0 * r for q in placed
+                    ):
                         break
                 else:
                     raise RuntimeError(
                         f"gate_escape: no valid start for robot {i} after "
                         f"{_MAX_START_DRAWS} draws"
                     )
-                position[t, i] = p
+                placed.append((px, py))
                 angle[t, i] = rng.uniform(-np.pi, np.pi)
+            position[t] = placed
         trials = GateEscapeTrials(
             escaped=np.zeros((b, n), dtype=bool),
             open_step=np.full(b, -1, dtype=np.int64),
@@ -297,34 +301,39 @@ class GateEscape(Task):
         pos, heading = bodies.position, bodies.angle
         b, n = heading.shape
         out = np.empty((b, n, c.n_inputs))
+        cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         # Gate centre.
         gx = self.gate_centre[0] - pos[..., 0]
         gy = self.gate_centre[1] - pos[..., 1]
-        gd = np.hypot(gx, gy)
+        gd = norm(gx, gy)
         seen = gd <= c.gate_sensor_range
         out[..., 0] = np.where(seen, normalised_reading(gd, c.gate_sensor_range), 1.0)
-        out[..., 1] = np.where(seen, bearing(gx, gy, heading) / np.pi, 0.0)
+        out[..., 1] = np.where(seen, bearing(gx, gy, cos_h, sin_h) * (1.0 / np.pi), 0.0)
         # Other robots still inside, edge to edge.
         dx, dy, dist = pairwise_offsets(pos)
         edge = dist - 2.0 * c.robot_radius
         sensed = (
             (edge <= c.neighbour_range) & self._not_self & bodies.enabled[:, None, :]
         )
-        out[..., 2] = sensed.sum(axis=-1) * (2.0 / max(n - 1, 1)) - 1.0
+        count = robot_sum(sensed.astype(np.float64), axis=-1)
+        out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
         readings = np.where(sensed, normalised_reading(edge, c.neighbour_range), 1.0)
         np.maximum(readings, -1.0, out=readings)
-        arcs = arc_index(bearing(dx, dy, heading[..., None]), c.n_robot_arcs)
+        arcs = bearing(dx, dy, cos_h[..., None], sin_h[..., None])
+        arcs = arc_index(arcs, c.n_robot_arcs)
         out[..., 3 : 3 + c.n_robot_arcs] = arc_minimum(readings, arcs, c.n_robot_arcs)
-        out[..., 3 + c.n_robot_arcs :] = self._wall_rays(pos, heading)
+        out[..., 3 + c.n_robot_arcs :] = self._wall_rays(pos, cos_h, sin_h)
         return out
 
-    def _wall_rays(self, pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    def _wall_rays(
+        self, pos: np.ndarray, cos_heading: np.ndarray, sin_heading: np.ndarray
+    ) -> np.ndarray:
         """(B, N, n_rays) wall readings; rays are cast only for robots close
         enough to a wall for a ray to reach it (the walls lie on the arena's
         border)."""
         c = self.config
         s, r, reach = c.arena_size, c.robot_radius, c.robot_radius + c.wall_ray_range
-        out = np.ones((*heading.shape, c.n_wall_rays))
+        out = np.ones((*cos_heading.shape, c.n_wall_rays))
         x, y = pos[..., 0], pos[..., 1]
         near = np.flatnonzero(
             (x < reach) | (x > s - reach) | (y < reach) | (y > s - reach)
@@ -332,8 +341,8 @@ class GateEscape(Task):
         if near.size == 0:
             return out
         p = pos.reshape(-1, 2)[near]
-        h = heading.reshape(-1)[near]
-        cos_h, sin_h = np.cos(h)[:, None], np.sin(h)[:, None]
+        cos_h = cos_heading.reshape(-1, 1)[near]
+        sin_h = sin_heading.reshape(-1, 1)[near]
         ux = cos_h * self._ray_cos - sin_h * self._ray_sin
         uy = sin_h * self._ray_cos + cos_h * self._ray_sin
         u = np.stack([ux, uy], axis=-1).reshape(-1, 2)
@@ -364,13 +373,13 @@ class GateEscape(Task):
             bodies.enabled &= ~crossed
             opens = crossed.any(axis=1) & (trials.open_step < 0)
             trials.open_step[opens] = step
-        gd = np.hypot(
-            pos[..., 0] - self.gate_centre[0], pos[..., 1] - self.gate_centre[1]
-        )
-        trials.gate_distance_sum += gd.mean(axis=1)
-        centroid = pos.mean(axis=1, keepdims=True)
-        spread = pos - centroid
-        trials.dispersion_sum += np.hypot(spread[..., 0], spread[..., 1]).mean(axis=1)
+        x, y = pos[..., 0], pos[..., 1]
+        n = c.n_robots
+        gd = norm(x - self.gate_centre[0], y - self.gate_centre[1])
+        trials.gate_distance_sum += robot_sum(gd) / n
+        cx = robot_sum(x) / n
+        cy = robot_sum(y) / n
+        trials.dispersion_sum += robot_sum(norm(x - cx[:, None], y - cy[:, None])) / n
         closed = (trials.open_step >= 0) & (
             step - trials.open_step >= c.gate_closing_steps
         )
