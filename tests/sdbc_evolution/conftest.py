@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from sdbc_evolution.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
+from sdbc_evolution.results import TIME_COLUMNS, read_generations, read_individuals
 from sdbc_sim.engine import controller_fitness
 
 TOY_INFO = TaskInfo(
@@ -81,3 +84,31 @@ class ToyEvaluator(Evaluator):
 @pytest.fixture
 def toy_evaluator() -> ToyEvaluator:
     return ToyEvaluator(workers=2)
+
+
+def snapshot(out: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(out)): p.read_bytes()
+        for p in sorted(out.rglob("*"))
+        if p.is_file()
+    }
+
+
+def assert_same_run(a: Path, b: Path) -> None:
+    """Identical outputs, wall-clock columns aside."""
+    ga, gb = read_generations(a), read_generations(b)
+    assert ga.keys() == gb.keys()
+    for column in ga:
+        if column not in TIME_COLUMNS:
+            np.testing.assert_array_equal(ga[column], gb[column], err_msg=column)
+    np.testing.assert_array_equal(
+        np.load(a / "best_genomes.npy"), np.load(b / "best_genomes.npy")
+    )
+    ia, ib = read_individuals(a), read_individuals(b)
+    assert ia.keys() == ib.keys()
+    for key in ia:
+        np.testing.assert_array_equal(ia[key], ib[key], err_msg=key)
+    with np.load(a / "checkpoint.npz") as ca, np.load(b / "checkpoint.npz") as cb:
+        assert ca.files == cb.files
+        for key in ca.files:
+            np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)

@@ -8,15 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TOY_INFO, ToyEvaluator
+from conftest import TOY_INFO, ToyEvaluator, assert_same_run, snapshot
 from sdbc_evolution.checkpoint import CheckpointError
 from sdbc_evolution.config import Treatment, config_from_dict
 from sdbc_evolution.experiment import Experiment, ExperimentError
-from sdbc_evolution.results import (
-    TIME_COLUMNS,
-    read_generations,
-    read_individuals,
-)
+from sdbc_evolution.results import read_generations, read_individuals
 
 from sdbc_evolution import checkpoint as checkpoint_module
 
@@ -53,34 +49,6 @@ def resume(config, out: Path, workers: int = 2) -> Experiment:
     experiment = Experiment.resume(config, out, ToyEvaluator(workers), TOY_INFO)
     experiment.run()
     return experiment
-
-
-def snapshot(out: Path) -> dict[str, bytes]:
-    return {
-        str(p.relative_to(out)): p.read_bytes()
-        for p in sorted(out.rglob("*"))
-        if p.is_file()
-    }
-
-
-def assert_same_run(a: Path, b: Path) -> None:
-    """Identical outputs, wall-clock columns aside."""
-    ga, gb = read_generations(a), read_generations(b)
-    assert ga.keys() == gb.keys()
-    for column in ga:
-        if column not in TIME_COLUMNS:
-            np.testing.assert_array_equal(ga[column], gb[column], err_msg=column)
-    np.testing.assert_array_equal(
-        np.load(a / "best_genomes.npy"), np.load(b / "best_genomes.npy")
-    )
-    ia, ib = read_individuals(a), read_individuals(b)
-    assert ia.keys() == ib.keys()
-    for key in ia:
-        np.testing.assert_array_equal(ia[key], ib[key], err_msg=key)
-    with np.load(a / "checkpoint.npz") as ca, np.load(b / "checkpoint.npz") as cb:
-        assert ca.files == cb.files
-        for key in ca.files:
-            np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)
 
 
 @pytest.mark.parametrize("treatment", TREATMENTS)
