@@ -86,8 +86,10 @@ from sdbc_sim.sensors import (
     arc_index,
     arc_minimum,
     bearing,
+    norm,
     normalised_reading,
     pairwise_offsets,
+    robot_sum,
 )
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -327,13 +329,13 @@ class ResourceSharing(Task):
         b = len(rngs)
         position = np.empty((b, n, 2))
         angle = np.empty((b, n))
+        centre = (s / 2.0, s / 2.0)
         for t, rng in enumerate(rngs):
-            taken = [self.station_centre]
+            taken = [centre]
             for i in range(n):
                 for _ in range(_MAX_START_DRAWS):
-                    p = rng.uniform(r, s - r, size=2)
-                    gaps = np.hypot(*(np.asarray(taken) - p).T)
-                    if bool(np.all(gaps >= c.start_separation)):
+                    p = tuple(rng.uniform(r, s - r, size=2).tolist())
+                    if all(math.dist(q, p) >= c.start_separation for q in taken):
                         break
                 else:
                     raise ValueError(
@@ -360,21 +362,22 @@ class ResourceSharing(Task):
 
     def sensors(self, trials: ResourceSharingTrials, bodies: BodyState) -> np.ndarray:
         c = self.config
-        pos, heading = bodies.position, bodies.angle
-        b, n = heading.shape
+        pos = bodies.position
+        b, n = bodies.angle.shape
         k = c.n_robot_arcs
         out = np.empty((b, n, c.n_inputs))
+        cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         dx, dy, dist = pairwise_offsets(pos)
         edge = dist - 2.0 * c.robot_radius
         sensed = (edge <= c.robot_sensor_range) & self._not_self
         readings = np.where(sensed, normalised_reading(edge, c.robot_sensor_range), 1.0)
         np.maximum(readings, -1.0, out=readings)
-        arcs = arc_index(bearing(dx, dy, heading[..., None]), k)
+        arcs = arc_index(bearing(dx, dy, cos_h[..., None], sin_h[..., None]), k)
         out[..., :k] = arc_minimum(readings, arcs, k)
         sx = self.station_centre[0] - pos[..., 0]
         sy = self.station_centre[1] - pos[..., 1]
-        out[..., k] = np.hypot(sx, sy) * (2.0 / c.station_sensor_range) - 1.0
-        out[..., k + 1] = bearing(sx, sy, heading) / np.pi
+        out[..., k] = norm(sx, sy) * (2.0 / c.station_sensor_range) - 1.0
+        out[..., k + 1] = bearing(sx, sy, cos_h, sin_h) * (1.0 / np.pi)
         out[..., k + 2] = trials.energy * (2.0 / c.max_energy) - 1.0
         out[..., k + 3] = np.where(trials.charging, 1.0, -1.0)
         return out
@@ -400,7 +403,7 @@ class ResourceSharing(Task):
         energy = np.maximum(trials.energy - drain, 0.0, out=trials.energy)
         alive = energy > 0.0
         pos = bodies.position
-        distance = np.hypot(
+        distance = norm(
             pos[..., 0] - self.station_centre[0], pos[..., 1] - self.station_centre[1]
         )
         speed = bodies.speed
@@ -414,12 +417,12 @@ class ResourceSharing(Task):
         np.minimum(
             energy + np.where(charging, c.charge_rate, 0.0), c.max_energy, out=energy
         )
-        trials.energy_sum += energy.sum(axis=1)
+        trials.energy_sum += robot_sum(energy)
         if step % c.characterisation_interval == 0:
-            trials.samples += alive.sum(axis=1)
-            trials.sampled_energy += np.where(alive, energy, 0.0).sum(axis=1)
-            trials.sampled_speed += np.where(alive, speed, 0.0).sum(axis=1)
-            trials.sampled_distance += np.where(alive, distance, 0.0).sum(axis=1)
+            trials.samples += np.count_nonzero(alive, axis=1)
+            trials.sampled_energy += robot_sum(energy * alive)
+            trials.sampled_speed += robot_sum(speed * alive)
+            trials.sampled_distance += robot_sum(distance * alive)
         return ~alive.any(axis=1)
 
     def task_state(
@@ -454,7 +457,7 @@ class ResourceSharing(Task):
     ) -> tuple[np.ndarray, np.ndarray]:
         c = self.config
         n = c.n_robots
-        survivors = (trials.energy > 0.0).sum(axis=1).astype(np.float64)
+        survivors = np.count_nonzero(trials.energy > 0.0, axis=1).astype(np.float64)
         mean_energy = trials.energy_sum / (n * length)
         fitness = (survivors + mean_energy / c.max_energy) / (1.0 + n)
         samples = np.maximum(trials.samples, 1)
