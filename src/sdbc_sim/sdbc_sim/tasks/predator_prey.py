@@ -1,0 +1,406 @@
+"""Predator-prey pursuit (SPEC.md, "Tasks"; Gomes, Mariano & Christensen, ALIFE 2014).
+
+Three predators, evolved, must catch a preprogrammed prey that runs away from them
+faster than they can drive. Only teamwork (cornering the prey, closing in from
+several sides) catches it.
+
+The prey: at every step, the predators whose edge-to-edge distance d_i lies in
+(0, ``flee_distance``) push it away along
+
+    u = sum_i (p_prey - p_i) / |p_prey - p_i| x 1 / d_i,
+
+and it turns to u and moves ``prey_speed`` along it; with no predator that close
+(or u = 0, as when two predators close in from opposite sides) it stands still.
+Capture: a predator centre within ``capture_distance`` (4) of the prey centre. The
+trial ends at capture, when the prey's centre leaves the chase zone
+[0, size]^2, or after ``max_steps``.
+
+Fitness (paper, eq. F_p):
+
+    F_p = 2 - t / tau                          if the prey was captured,
+    F_p = max(d_i - d_f, 0) / diagonal          otherwise,
+
+t the trial length, tau = ``max_steps``, d_i and d_f the mean predator-prey centre
+distance at the start and at the end (d_f capped at the diagonal, as the authors'
+code did), diagonal = sqrt(2) size.
+
+Task-specific characterisation (Gomes et al. 2014), each in [0, 1]: captured (0 or
+1); t / tau; d_f / diagonal (capped at 1); predator dispersion, the mean over the
+trial's steps of the predators' mean distance to their centroid, / (diagonal / 2)
+and capped at 1 (the authors' normalisation).
+
+Sensors of predator i (inputs, in this order; as the authors' code, with
+distances edge to edge d, read 2 d / size - 1 and not capped, bearings / pi):
+  0, 1. the nearest other predator (by centre distance): distance, bearing;
+  2, 3. the next one, and so on for every other predator;
+  4, 5. the prey: distance, bearing.
+
+Outputs: speed o0 x ``predator_speed``; turn (2 o1 - 1) x ``max_turn`` radians,
+applied before the move.
+
+Choices where SPEC.md is silent (from the authors' code, MASE fd13449, where it says):
+- Order within a step: the prey decides from the positions before the step, then
+  predators and prey move together (one physics step), then capture, then leaving.
+  A capture and a leaving at the same step count as a capture.
+- Leaving: the centre strictly outside [0, size]^2.
+- d_i and d_f are both centre to centre, d_i taken from the bodies before the
+  first step (the authors' code took d_i edge to edge, d_f centre to centre); the
+  characterisation divides d_f by the diagonal as SPEC.md says (the authors' code:
+  the edge-to-edge mean / (diagonal / 2), capped at 1).
+- A predator touching the prey (edge distance 0) does not count in u, whose
+  weight 1 / d_i it would make infinite (authors' code); capture comes first anyway.
+- Start: predators in a row along y = ``predator_start_y``, ``predator_spacing``
+  apart, centred on x = size / 2, facing +y; prey uniform in
+  [margin, size - margin]^2, facing +x. The prey is the trial's only random draw.
+- No walls: predators may wander off; the prey ends the trial if it leaves.
+- Bodies collide (the authors' homogeneous setup enabled collisions); the prey has
+  the predators' mass, so predators can push it.
+- The captured prey leaves the Prey group (and the physics). The task state:
+  Predators (x, y, turning speed = angular velocity, linear speed = |v|), Prey
+  (same), Boundary (the chase zone's 4 edges, static).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sdbc_sim.network import NetworkShape
+from sdbc_sim.sensors import bearing, norm, pairwise_offsets, robot_sum, wrap_angle
+from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
+from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
+
+
+@dataclass(frozen=True)
+class PredatorPreyConfig:
+    """Settings of the predator-prey task; defaults from SPEC.md.
+
+    Attributes:
+        arena_size: Side of the square chase zone [0, size]^2 (open: no walls).
+        n_predators: Predators in the team.
+        predator_radius: Radius of a predator.
+        prey_radius: Radius of the prey.
+        predator_speed: Top speed of a predator, units per step.
+        max_turn: Largest turn of a predator, radians per step.
+        predator_spacing: Distance between neighbouring predators at the start.
+        predator_start_y: The predators start on this line, facing +y.
+        prey_margin: The prey starts uniform in [margin, size - margin]^2.
+        prey_speed: Speed of a fleeing prey, units per step.
+        flee_distance: The prey flees predators closer than this, edge to edge.
+        capture_distance: A predator centre this close to the prey's captures it.
+        n_hidden: Hidden units of the network.
+        max_steps: tau, the longest trial.
+    """
+
+    arena_size: float = 100.0
+    n_predators: int = 3
+    predator_radius: float = 1.5
+    prey_radius: float = 1.5
+    predator_speed: float = 0.5
+    max_turn: float = 1.57
+    predator_spacing: float = 5.0
+    predator_start_y: float = 0.0
+    prey_margin: float = 20.0
+    prey_speed: float = 0.75
+    flee_distance: float = 5.0
+    capture_distance: float = 4.0
+    n_hidden: int = 5
+    max_steps: int = 600
+
+    def __post_init__(self) -> None:
+        for name in (
+            "arena_size",
+            "predator_radius",
+            "prey_radius",
+            "predator_speed",
+            "max_turn",
+            "predator_spacing",
+            "prey_speed",
+            "flee_distance",
+            "capture_distance",
+        ):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"predator_prey: {name} must be positive, got {v}")
+        for name in ("prey_margin", "predator_start_y"):
+            v = getattr(self, name)
+            if not math.isfinite(v):
+                raise ValueError(f"predator_prey: {name} must be finite, got {v}")
+        for name in ("n_predators", "n_hidden", "max_steps"):
+            if getattr(self, name) < 1:
+                raise ValueError(
+                    f"predator_prey: {name} must be >= 1, got {getattr(self, name)}"
+                )
+        for speed, radius in (
+            ("predator_speed", "predator_radius"),
+            ("prey_speed", "prey_radius"),
+        ):
+            if getattr(self, speed) >= getattr(self, radius):
+                raise ValueError(
+                    f"predator_prey: {speed} {getattr(self, speed)} must be below "
+                    f"{radius} {getattr(self, radius)}, or bodies could pass through "
+                    "each other in one step"
+                )
+        touch = self.predator_radius + self.prey_radius
+        if self.capture_distance < touch:
+            raise ValueError(
+                f"predator_prey: capture_distance {self.capture_distance} is below "
+                f"predator_radius + prey_radius {touch}: no capture could happen"
+            )
+        if self.predator_spacing < 2.0 * self.predator_radius:
+            raise ValueError(
+                f"predator_prey: predator_spacing {self.predator_spacing} is below a "
+                f"predator's diameter {2.0 * self.predator_radius}"
+            )
+        s, m = self.arena_size, self.prey_margin
+        row = (
+            self.n_predators - 1
+        ) * self.predator_spacing + 2.0 * self.predator_radius
+        if row > s:
+            raise ValueError(
+                f"predator_prey: the arena is too small for its robots: "
+                f"{self.n_predators} predators {self.predator_spacing} apart span "
+                f"{row}, more than arena_size {s}"
+            )
+        if not self.prey_radius <= m <= s / 2.0:
+            raise ValueError(
+                f"predator_prey: prey_margin {m} must lie in [prey_radius "
+                f"{self.prey_radius}, arena_size / 2 = {s / 2.0}]"
+            )
+        y = self.predator_start_y
+        if m - touch < y < s - m + touch:
+            raise ValueError(
+                f"predator_prey: predator_start_y {y} lets the prey start on a "
+                f"predator: the prey's start box spans y in [{m}, {s - m}]"
+            )
+
+    @property
+    def n_inputs(self) -> int:
+        """Distance and bearing to every other predator and to the prey."""
+        return 2 * self.n_predators
+
+    @property
+    def diagonal(self) -> float:
+        """The chase zone's diagonal, sqrt(2) size."""
+        return math.sqrt(2.0) * self.arena_size
+
+
+@dataclass
+class PredatorPreyTrials(TrialArrays):
+    """Per-trial state of predator-prey.
+
+    Attributes:
+        captured: (B,) bool, the prey has been captured.
+        initial_distance: (B,) d_i, mean predator-prey centre distance at the start
+            (taken before the first step; NaN until then).
+        final_distance: (B,) d_f, the same after the last step.
+        dispersion_sum: (B,) sum over steps of the predators' mean distance to
+            their centroid.
+    """
+
+    captured: np.ndarray
+    initial_distance: np.ndarray
+    final_distance: np.ndarray
+    dispersion_sum: np.ndarray
+
+
+class PredatorPrey(Task):
+    """The predator-prey pursuit task over a batch of trials."""
+
+    name = "predator_prey"
+    config_class = PredatorPreyConfig
+
+    def __init__(self, config: PredatorPreyConfig | None = None) -> None:
+        c = self.config = config or PredatorPreyConfig()
+        n, s = c.n_predators, c.arena_size
+        self.network = NetworkShape(c.n_inputs, c.n_hidden, 2)
+        self.layout = BodyLayout(
+            radii=(c.predator_radius,) * n + (c.prey_radius,),
+            controlled=(True,) * n + (False,),
+        )
+        self.max_steps = c.max_steps
+        self.characterisation_size = 4
+        self.walls = np.empty((0, 2, 2))
+        corners = np.array([(0.0, 0.0), (s, 0.0), (s, s), (0.0, s), (0.0, 0.0)])
+        self.boundary = np.stack([corners[:-1], corners[1:]], axis=1)
+        half_row = (n - 1) * c.predator_spacing / 2.0
+        self.start_x = s / 2.0 + np.linspace(-half_row, half_row, n)
+        # No walls: predators can drive predator_speed x max_steps from anywhere
+        # they start; the prey never gets farther than one step out of the zone,
+        # plus what a push can add.
+        reach = max(c.predator_speed, c.prey_speed) * c.max_steps + 2.0 * max(
+            c.predator_radius, c.prey_radius
+        )
+        y0, y1 = min(0.0, c.predator_start_y), max(s, c.predator_start_y)
+        self.extent = (-reach, y0 - reach, s + reach, y1 + reach)
+        attributes = ("x", "y", "turning speed", "linear speed")
+        self.description = TaskDescription(
+            name=self.name,
+            groups=(
+                EntityGroupSpec("Predators", attributes, n, n, False, Geometry.CIRCLE),
+                EntityGroupSpec("Prey", attributes, 0, 1, False, Geometry.CIRCLE),
+                EntityGroupSpec("Boundary", (), 1, 1, True, Geometry.POLYGON),
+            ),
+        )
+        self._others = n - 1
+        self._self_distance = np.where(np.eye(n, dtype=bool), np.inf, 0.0)
+        self._predator_present = np.ones((1, n), dtype=bool)
+        self._predator_radii = np.full((1, n), c.predator_radius)
+        self._prey_radii = np.full((1, 1), c.prey_radius)
+        self._boundary_present = np.ones((1, 1), dtype=bool)
+        self._boundary_attributes = np.empty((1, 1, 0))
+        self._boundary_segments = self.boundary[None, None]
+
+    def reset(
+        self, rngs: list[np.random.Generator]
+    ) -> tuple[PredatorPreyTrials, np.ndarray, np.ndarray]:
+        c = self.config
+        n, s, m = c.n_predators, c.arena_size, c.prey_margin
+        b = len(rngs)
+        position = np.empty((b, n + 1, 2))
+        position[:, :n, 0] = self.start_x
+        position[:, :n, 1] = c.predator_start_y
+        for t, rng in enumerate(rngs):
+            position[t, n] = rng.uniform(m, s - m, size=2)
+        angle = np.zeros((b, n + 1))
+        angle[:, :n] = np.pi / 2.0
+        trials = PredatorPreyTrials(
+            captured=np.zeros(b, dtype=bool),
+            initial_distance=np.full(b, np.nan),
+            final_distance=np.full(b, np.nan),
+            dispersion_sum=np.zeros(b),
+        )
+        return trials, position, angle
+
+    def sensors(self, trials: PredatorPreyTrials, bodies: BodyState) -> np.ndarray:
+        c = self.config
+        n = c.n_predators
+        pos = bodies.position[:, :n]
+        b = pos.shape[0]
+        out = np.empty((b, n, c.n_inputs))
+        cos_h, sin_h = bodies.cos_angle[:, :n], bodies.sin_angle[:, :n]
+        scale = 2.0 / c.arena_size
+        if self._others:
+            dx, dy, dist = pairwise_offsets(pos)
+            order = np.argsort(dist + self._self_distance, axis=-1, kind="stable")
+            order = order[..., : self._others]
+            d = np.take_along_axis(dist, order, axis=-1)
+            edge = np.maximum(d - 2.0 * c.predator_radius, 0.0)
+            out[..., 0 : 2 * self._others : 2] = edge * scale - 1.0
+            ox = np.take_along_axis(dx, order, axis=-1)
+            oy = np.take_along_axis(dy, order, axis=-1)
+            out[..., 1 : 2 * self._others : 2] = bearing(
+                ox, oy, cos_h[..., None], sin_h[..., None]
+            ) * (1.0 / np.pi)
+        px = bodies.position[:, n : n + 1, 0] - pos[..., 0]
+        py = bodies.position[:, n : n + 1, 1] - pos[..., 1]
+        edge = np.maximum(norm(px, py) - (c.predator_radius + c.prey_radius), 0.0)
+        out[..., -2] = edge * scale - 1.0
+        out[..., -1] = bearing(px, py, cos_h, sin_h) * (1.0 / np.pi)
+        return out
+
+    def actuate(
+        self, trials: PredatorPreyTrials, bodies: BodyState, outputs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        n = c.n_predators
+        b = outputs.shape[0]
+        speed = np.empty((b, n + 1))
+        turn = np.empty((b, n + 1))
+        speed[:, :n] = outputs[..., 0] * c.predator_speed
+        turn[:, :n] = (2.0 * outputs[..., 1] - 1.0) * c.max_turn
+        # The prey's flight, from the positions before the step.
+        away = bodies.position[:, n : n + 1] - bodies.position[:, :n]
+        centre = norm(away[..., 0], away[..., 1])
+        # d_i from the bodies as the first step finds them (NaN until then).
+        first = np.isnan(trials.initial_distance)
+        if first.any():
+            trials.initial_distance[first] = robot_sum(centre[first]) / n
+        edge = centre - (c.predator_radius + c.prey_radius)
+        close = (edge > 0.0) & (edge < c.flee_distance)
+        weight = np.where(close, 1.0 / np.where(close, edge * centre, 1.0), 0.0)
+        ux = robot_sum(away[..., 0] * weight)
+        uy = robot_sum(away[..., 1] * weight)
+        flees = (ux != 0.0) | (uy != 0.0)
+        speed[:, n] = np.where(flees, c.prey_speed, 0.0)
+        target = np.arctan2(uy, ux)
+        turn[:, n] = np.where(flees, wrap_angle(target - bodies.angle[:, n]), 0.0)
+        return speed, turn
+
+    def update(
+        self, trials: PredatorPreyTrials, bodies: BodyState, step: int
+    ) -> np.ndarray:
+        c = self.config
+        n, s = c.n_predators, c.arena_size
+        pos = bodies.position
+        prey = pos[:, n]
+        offset = pos[:, :n] - prey[:, None, :]
+        centre = norm(offset[..., 0], offset[..., 1])
+        captured = (centre <= c.capture_distance).any(axis=1)
+        trials.captured |= captured
+        bodies.enabled[:, n] &= ~captured
+        trials.final_distance = robot_sum(centre) / n
+        x, y = pos[:, :n, 0], pos[:, :n, 1]
+        cx = robot_sum(x) / n
+        cy = robot_sum(y) / n
+        trials.dispersion_sum += robot_sum(norm(x - cx[:, None], y - cy[:, None])) / n
+        outside = (prey < 0.0).any(axis=1) | (prey > s).any(axis=1)
+        return captured | outside
+
+    def task_state(
+        self, trials: PredatorPreyTrials, bodies: BodyState
+    ) -> tuple[GroupState, ...]:
+        n = self.config.n_predators
+        b = bodies.angle.shape[0]
+        attributes = np.empty((b, n + 1, 4))
+        attributes[..., 0:2] = bodies.position
+        attributes[..., 2] = bodies.angular_velocity
+        attributes[..., 3] = bodies.speed
+        centres = bodies.position.copy()
+        return (
+            GroupState(
+                present=self._predator_present,
+                attributes=attributes[:, :n],
+                centres=centres[:, :n],
+                radii=self._predator_radii,
+            ),
+            GroupState(
+                present=bodies.enabled[:, n : n + 1].copy(),
+                attributes=attributes[:, n:],
+                centres=centres[:, n:],
+                radii=self._prey_radii,
+            ),
+            GroupState(
+                present=self._boundary_present,
+                attributes=self._boundary_attributes,
+                segments=self._boundary_segments,
+            ),
+        )
+
+    def results(
+        self, trials: PredatorPreyTrials, length: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        diagonal = c.diagonal
+        final = np.minimum(trials.final_distance, diagonal)
+        time = length / c.max_steps
+        fitness = np.where(
+            trials.captured,
+            2.0 - time,
+            np.maximum(trials.initial_distance - final, 0.0) / diagonal,
+        )
+        characterisation = np.stack(
+            [
+                trials.captured.astype(np.float64),
+                time,
+                final / diagonal,
+                np.minimum(trials.dispersion_sum / length / (diagonal / 2.0), 1.0),
+            ],
+            axis=1,
+        )
+        return fitness, characterisation
+
+
+TASK = PredatorPrey

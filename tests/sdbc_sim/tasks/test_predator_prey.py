@@ -1,0 +1,282 @@
+"""Predator-prey rules, sensors and results against hand-computed numbers.
+
+The predators are driven by hand-written controllers: fixed outputs supplied to the
+engine at every step. GO drives a predator straight at full speed (o0 = 1, o1 = 0.5:
+no turn, 0.5 per step), STOP holds it still.
+
+The engine moves a body by the speed commanded at step k during step k + 1, so a
+predator that goes from the start is at y0 + 0.5 (k - 1) after step k; the prey,
+which decides from the positions before each step, likewise moves one step after it
+decides to flee.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from sdbc_evolution.sdbc.characterisation import SdbcExtractor
+from sdbc_sim.engine import TrialStepper, run_batch
+from sdbc_sim.task_state import TaskState
+from sdbc_sim.tasks import make_task
+from sdbc_sim.tasks.predator_prey import PredatorPrey, PredatorPreyConfig
+
+GO = (1.0, 0.5)
+STOP = (0.0, 0.5)
+DIAGONAL = math.sqrt(2) * 100
+UP = math.pi / 2
+
+
+def drive(
+    task: PredatorPrey, outputs: list[tuple[float, float]]
+) -> tuple[TrialStepper, list[TaskState]]:
+    """Runs one trial with constant predator outputs; returns the stepper and the
+    task state of every step."""
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    states = []
+    while not stepper.done:
+        stepper.step(np.array(outputs))
+        states.append(stepper.state())
+    return stepper, states
+
+
+def prey_track(states: list[TaskState]) -> np.ndarray:
+    """(steps, 4) the prey's x, y, turning speed and linear speed."""
+    return np.array([s.groups[1].attributes[0, 0] for s in states])
+
+
+def dispersion(predators: list[np.ndarray]) -> float:
+    """Mean over steps of the predators' mean distance to their centroid,
+    normalised by half the diagonal."""
+    total = 0.0
+    for p in predators:
+        total += np.linalg.norm(p - p.mean(axis=0), axis=1).mean()
+    return total / len(predators) / (DIAGONAL / 2)
+
+
+def test_pincer_captures_at_centre_distance_4(placed) -> None:
+    """Predators 0 and 2 close in on the prey from either side: their away-vectors
+    cancel, so the prey stands still, and both reach centre distance
+    10 - 0.5 (k - 1) = 4 at step 13."""
+    task = placed(
+        PredatorPrey(),
+        [[40.0, 50.0], [50.0, 0.0], [60.0, 50.0], [50.0, 50.0]],
+        [0.0, UP, math.pi, 0.0],
+    )
+    stepper, states = drive(task, [GO, STOP, GO])
+    fitness, characterisation, length = stepper.result()
+    assert length == 13
+    assert fitness == pytest.approx(2 - 13 / 600, abs=1e-15)
+    track = prey_track(states[:-1])
+    np.testing.assert_array_equal(track[:, 3], 0.0)
+    np.testing.assert_allclose(track[:, :2], [[50.0, 50.0]] * 12, atol=1e-9)
+    present = [bool(s.groups[1].present[0, 0]) for s in states]
+    assert present == [True] * 12 + [False]
+    predators = [
+        np.array([[40 + 0.5 * (k - 1), 50], [50, 0], [60 - 0.5 * (k - 1), 50]])
+        for k in range(1, 14)
+    ]
+    np.testing.assert_allclose(
+        characterisation,
+        [1.0, 13 / 600, (4 + 50 + 4) / 3 / DIAGONAL, dispersion(predators)],
+        atol=1e-12,
+    )
+
+
+def test_prey_flees_only_from_predators_within_5(placed) -> None:
+    """One predator drives at the prey from 10 below. The prey flees (+y, 0.75 per
+    step) at the steps where, before the step, the edge-to-edge distance
+    y_prey - y_pred - 3 is below 5, and stands still otherwise."""
+    task = placed(
+        make_task("predator_prey", max_steps=15),
+        [[10.0, 10.0], [50.0, 40.0], [90.0, 10.0], [50.0, 50.0]],
+        [UP, UP, UP, 0.0],
+    )
+    stepper, states = drive(task, [STOP, GO, STOP])
+    track = prey_track(states)
+    # Predator after step k: 40 + 0.5 (k - 1). Gaps before step k = 1..6: 10, 10,
+    # 9.5, 9, 8.5, 8 (edge 5: not below 5); 7 .. 11 flee (gaps 7.5, 7, 7.25, 7.5,
+    # 7.75); 12 and 13 stay (8, 8.25); 14 and 15 flee (7.75, 7.25).
+    fleeing = [0] * 6 + [1] * 5 + [0, 0, 1, 1]
+    np.testing.assert_array_equal(track[:, 3], 0.75 * np.array(fleeing))
+    y = [50.0] * 7 + [50.75, 51.5, 52.25, 53.0, 53.75, 53.75, 53.75, 54.5]
+    np.testing.assert_allclose(track[:, 1], y, atol=1e-9)
+    np.testing.assert_allclose(track[:, 0], 50.0, atol=1e-9)
+    # The prey turns to +y once, at its first flight.
+    turning = np.zeros(15)
+    turning[6] = UP
+    np.testing.assert_allclose(track[:, 2], turning, atol=1e-12)
+    fitness, characterisation, length = stepper.result()
+    assert length == 15 and fitness == 0.0
+    assert characterisation[0] == 0.0 and characterisation[1] == 15 / 15
+
+
+def test_prey_flees_along_weighted_sum_of_away_vectors(placed) -> None:
+    """Predators 4 (below) and 3 (left) from the prey's edge, the third far away:
+    u = (0, 1) / 4 + (1, 0) / 3 = (1/3, 1/4), whose direction is (0.8, 0.6)."""
+    task = placed(
+        make_task("predator_prey", max_steps=2),
+        [[50.0, 43.0], [44.0, 50.0], [90.0, 10.0], [50.0, 50.0]],
+        [UP, 0.0, UP, 0.0],
+    )
+    stepper, states = drive(task, [STOP, STOP, STOP])
+    track = prey_track(states)
+    assert track[0, 2] == pytest.approx(math.atan2(0.25, 1 / 3), abs=1e-12)
+    np.testing.assert_allclose(track[:, 3], [0.75, 0.75], atol=1e-12)
+    np.testing.assert_allclose(track[1, :2], [50.6, 50.45], atol=1e-9)
+
+
+def test_prey_leaving_the_chase_zone_ends_the_trial(placed) -> None:
+    """A still predator 4 below the prey's edge pushes it out through y = 100: it
+    flees from step 1 and moves from step 2, at y = 99.75 after step 2 and
+    100.5 > 100 after step 3."""
+    start = [[10.0, 10.0], [50.0, 92.0], [90.0, 10.0], [50.0, 99.0]]
+    task = placed(PredatorPrey(), start, [UP, UP, UP, 0.0])
+    stepper, states = drive(task, [STOP, STOP, STOP])
+    fitness, characterisation, length = stepper.result()
+    assert length == 3
+    np.testing.assert_allclose(prey_track(states)[:, 1], [99.0, 99.75, 100.5])
+    predators = np.array(start[:3])
+    d_final = np.linalg.norm(predators - [50.0, 100.5], axis=1).mean()
+    d_initial = np.linalg.norm(predators - [50.0, 99.0], axis=1).mean()
+    assert d_final > d_initial and fitness == 0.0
+    np.testing.assert_allclose(
+        characterisation,
+        [0.0, 3 / 600, d_final / DIAGONAL, dispersion([predators] * 3)],
+        atol=1e-12,
+    )
+    assert bool(states[-1].groups[1].present[0, 0])
+
+
+def test_closing_in_without_capture_scores_the_distance_gained(placed) -> None:
+    """The three predators drive straight up from the start for 10 steps towards
+    a prey 50 away that never senses them: they end 4.5 higher."""
+    task = placed(
+        make_task("predator_prey", max_steps=10),
+        [[45.0, 0.0], [50.0, 0.0], [55.0, 0.0], [50.0, 50.0]],
+        [UP] * 4,
+    )
+    stepper, _ = drive(task, [GO, GO, GO])
+    fitness, characterisation, length = stepper.result()
+    assert length == 10
+    d_initial = (2 * math.hypot(5, 50) + 50) / 3
+    d_final = (2 * math.hypot(5, 45.5) + 45.5) / 3
+    assert fitness == pytest.approx((d_initial - d_final) / DIAGONAL, abs=1e-12)
+    np.testing.assert_allclose(
+        characterisation,
+        [0.0, 1.0, d_final / DIAGONAL, (10 / 3) / (DIAGONAL / 2)],
+        atol=1e-12,
+    )
+
+
+def test_sensors_by_hand(placed) -> None:
+    start = [[45.0, 0.0], [50.0, 0.0], [55.0, 0.0], [50.0, 30.0]]
+    task = placed(PredatorPrey(), start, [UP, UP, UP, 0.0])
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    x = stepper.sensors()
+    assert x.shape == (3, 6)
+    # Edge distances read 2 d / 100 - 1: predators 5 and 10 apart are 2 and 7
+    # apart edge to edge; bearings / pi from a predator facing +y.
+    prey0 = math.hypot(5, 30) - 3
+    bearing0 = (math.atan2(30, 5) - UP) / math.pi
+    np.testing.assert_allclose(
+        x[0], [-0.96, -0.5, -0.86, -0.5, 2 * prey0 / 100 - 1, bearing0], atol=1e-12
+    )
+    # Predator 1: both others 5 away; the tie keeps index order (0 left, 2 right).
+    np.testing.assert_allclose(x[1], [-0.96, 0.5, -0.96, -0.5, -0.46, 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        x[2], [-0.96, 0.5, -0.86, 0.5, 2 * prey0 / 100 - 1, -bearing0], atol=1e-12
+    )
+
+
+def test_predator_outputs_set_speed_and_turn(placed) -> None:
+    task = placed(
+        PredatorPrey(),
+        [[45.0, 0.0], [50.0, 0.0], [55.0, 0.0], [50.0, 50.0]],
+        [UP] * 3 + [0.0],
+    )
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    stepper.step(np.array([(0.4, 1.0), (1.0, 0.0), (0.0, 0.75)]))
+    predators = stepper.state().groups[0]
+    # Speed 0.5 o0; turn (2 o1 - 1) 1.57.
+    np.testing.assert_allclose(
+        predators.attributes[0, :, 2:], [[1.57, 0.2], [-1.57, 0.5], [0.785, 0.0]]
+    )
+
+
+def test_random_start() -> None:
+    task = PredatorPrey()
+    trials, position, angle = task.reset([np.random.default_rng(s) for s in range(300)])
+    np.testing.assert_array_equal(
+        position[:, :3], np.tile([[45.0, 0.0], [50.0, 0.0], [55.0, 0.0]], (300, 1, 1))
+    )
+    np.testing.assert_array_equal(angle[:, :3], UP)
+    prey = position[:, 3]
+    assert np.all((prey >= 20.0) & (prey <= 80.0))
+    assert prey[:, 0].std() > 10 and prey[:, 1].std() > 10
+    again = task.reset([np.random.default_rng(7)])
+    np.testing.assert_array_equal(again[1][0], position[7])
+    assert not trials.captured.any()
+
+
+def test_description_gives_the_papers_27_dimensions() -> None:
+    task = make_task("predator_prey")
+    d = task.description
+    assert [g.name for g in d.groups] == ["Predators", "Prey", "Boundary"]
+    attributes = ("x", "y", "turning speed", "linear speed")
+    assert d.group("Predators").attributes == attributes
+    assert d.group("Prey").attributes == attributes
+    assert (d.group("Predators").min_size, d.group("Predators").max_size) == (3, 3)
+    assert (d.group("Prey").min_size, d.group("Prey").max_size) == (0, 1)
+    assert d.group("Boundary").is_static and d.group("Boundary").attributes == ()
+    assert task.genome_length == 47
+    # The SDBC extractor reads the task state of real trials into 2 x 13 + 1.
+    extractor = SdbcExtractor()
+    genomes = np.random.default_rng(5).uniform(-1, 1, (4, 47))
+    result = run_batch(task, genomes, np.arange(8).reshape(4, 2), [extractor])
+    names = extractor.dimension_names
+    assert len(names) == 27
+    for name in ("Predators-prey distance (F)", "Prey-boundary distance (F)"):
+        assert name in names
+    vectors = extractor.characterisations()
+    assert vectors.shape == (8, 27) and np.isfinite(vectors).all()
+    np.testing.assert_array_equal(vectors[:, -1], result.length.ravel())
+
+
+def test_batch_matches_a_trial_alone() -> None:
+    """The same genome and seed, alone and in slot 41 of a batch of random
+    genomes: identical to the bit."""
+    task = PredatorPrey(PredatorPreyConfig(max_steps=200))
+    rng = np.random.default_rng(3)
+    genomes = rng.uniform(-1, 1, (60, task.genome_length))
+    seeds = rng.integers(0, 2**31, (60, 1))
+    batch = run_batch(task, genomes, seeds)
+    alone = run_batch(task, genomes[41:42], seeds[41:42])
+    assert batch.fitness[41, 0] == alone.fitness[0, 0]
+    np.testing.assert_array_equal(batch.characterisation[41], alone.characterisation[0])
+    assert batch.length[41, 0] == alone.length[0, 0]
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"predator_radius": -1.5}, "predator_radius must be positive"),
+        ({"arena_size": 10.0}, "too small for its robots"),
+        ({"capture_distance": 2.0}, "no capture could happen"),
+        ({"predator_speed": 2.0}, "pass through each other"),
+        ({"prey_margin": 60.0}, "prey_margin"),
+        ({"predator_start_y": 50.0}, "predator_start_y"),
+        ({"predator_spacing": 1.0}, "predator_spacing"),
+        ({"n_predators": 0}, "n_predators must be >= 1"),
+        ({"flee_distance": float("nan")}, "flee_distance"),
+    ],
+)
+def test_bad_settings_are_named(overrides: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        PredatorPreyConfig(**overrides)
+    with pytest.raises(ValueError, match=message):
+        make_task("predator_prey", **overrides)
