@@ -12,7 +12,8 @@ the bit-identical resume contract):
    N - elites are bounded-Gaussian mutants of tournament winners;
 5. re-evaluation of the generation's best (highest fitness) in fresh trials whose
    seeds come from a second generator, so turning re-evaluation on or off does not
-   change the run;
+   change the run; its fitness sums the trials up like every fitness (harmonic
+   mean by default);
 6. outputs (``sdbc_evolution.results``), then the checkpoint (``checkpoint.npz``).
 
 The run's two generators are children of ``np.random.SeedSequence(seed)``. A run
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from sdbc_sim.engine import controller_fitness
 
 from sdbc_evolution.archive import NoveltyArchive
 from sdbc_evolution.checkpoint import (
@@ -48,6 +50,22 @@ from sdbc_evolution.treatments import GenerationScores, score_generation
 
 TRIAL_SEED_BOUND = 2**63 - 1
 """Trial seeds are drawn uniformly from [0, 2^63 - 1)."""
+
+
+class _PhaseClock:
+    """Seconds spent in consecutive phases of a generation."""
+
+    def __init__(self) -> None:
+        self.start = self.last = time.perf_counter()
+        self.phases: dict[str, float] = {}
+
+    def lap(self, phase: str) -> None:
+        now = time.perf_counter()
+        self.phases[phase] = now - self.last
+        self.last = now
+
+    def total(self) -> float:
+        return time.perf_counter() - self.start
 
 
 class ExperimentError(RuntimeError):
@@ -112,6 +130,7 @@ class Experiment:
         self.info = info
         self.state = state
         self.results = results
+        self.timings: dict[str, float] = {}
 
     @property
     def generations(self) -> int:
@@ -226,19 +245,23 @@ class Experiment:
                 on_generation(record)
 
     def step(self) -> GenerationRecord:
-        """Runs one generation, writes its outputs and the checkpoint."""
+        """Runs one generation, writes its outputs and the checkpoint.
+
+        Afterwards :attr:`timings` holds the seconds each phase took: "evaluation"
+        (the population's trials), "scoring" (standardisation, weights, novelty,
+        archive, ranking), "breeding", "reevaluation", "outputs" and "checkpoint".
+        """
         config, state = self.config, self.state
-        start = time.perf_counter()
+        clock = _PhaseClock()
         g = state.generation
         population = state.population
         n = population.shape[0]
         seeds = state.rng.integers(
             0, TRIAL_SEED_BOUND, size=(n, config.evaluation.trials), dtype=np.int64
         )
-        evaluation_start = time.perf_counter()
         evaluation = self.evaluator.evaluate(population, seeds)
-        evaluation_time = time.perf_counter() - evaluation_start
         self._check_evaluation(evaluation, n)
+        clock.lap("evaluation")
         scores = score_generation(
             config.treatment,
             evaluation,
@@ -250,11 +273,12 @@ class Experiment:
             config.standardisation,
             config.weighting,
         )
+        clock.lap("scoring")
         children, parent, elite = self._breed(population, scores)
+        clock.lap("breeding")
         best = int(np.argmax(evaluation.fitness))
-        reevaluation_start = time.perf_counter()
         reevaluated_fitness, reevaluated_mean = self._reevaluate(population[best])
-        evaluation_time += time.perf_counter() - reevaluation_start
+        clock.lap("reevaluation")
         record = GenerationRecord(
             generation=g,
             best_fitness=float(evaluation.fitness[best]),
@@ -265,17 +289,20 @@ class Experiment:
             archive_size=len(state.archive),
             reevaluated_fitness=reevaluated_fitness,
             reevaluated_mean=reevaluated_mean,
-            wall_time=time.perf_counter() - start,
-            evaluation_time=evaluation_time,
+            wall_time=clock.total(),
+            evaluation_time=clock.phases["evaluation"] + clock.phases["reevaluation"],
             weights=scores.weights,
         )
         self.results.append_generation(
             record, self._individuals(evaluation, scores), population[best]
         )
+        clock.lap("outputs")
         state.generation = g + 1
         state.population, state.parent, state.elite = children, parent, elite
         state.weights = scores.weights
         save_checkpoint(self.results.checkpoint_path, self._checkpoint())
+        clock.lap("checkpoint")
+        self.timings = clock.phases
         return record
 
     def _check_evaluation(self, evaluation: Evaluation, n: int) -> None:
@@ -316,10 +343,14 @@ class Experiment:
         if trials == 0:
             return float("nan"), float("nan")
         seeds = self.state.reevaluation_rng.integers(
-            0, TRIAL_SEED_BOUND, size=(1, trials), dtype=np.int64
+            0, TRIAL_SEED_BOUND, size=(trials, 1), dtype=np.int64
         )
-        evaluation = self.evaluator.evaluate(genome[None], seeds)
-        return float(evaluation.fitness[0]), float(evaluation.trial_fitness[0].mean())
+        # One row per trial lets the evaluator spread the trials over its workers;
+        # a trial's result does not depend on its batch-mates.
+        evaluation = self.evaluator.evaluate(np.repeat(genome[None], trials, 0), seeds)
+        trial_fitness = evaluation.trial_fitness.reshape(1, trials)
+        fitness = controller_fitness(trial_fitness, self.config.evaluation.fitness_mean)
+        return float(fitness[0]), float(trial_fitness.mean())
 
     def _individuals(
         self, evaluation: Evaluation, scores: GenerationScores

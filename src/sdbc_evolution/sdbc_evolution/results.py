@@ -24,8 +24,10 @@ The replication study and the analysis read this layout; it is kept stable::
   ``evaluation.reevaluation_trials`` fresh trials, summed up like every fitness
   (harmonic mean by default); ``reevaluated_mean``: the arithmetic mean of those
   trials (both empty when re-evaluation is off) - the paper's curves;
-- ``wall_time``: seconds the generation took, all included;
-  ``evaluation_time``: seconds of it spent in the evaluator (simulation and SDBC
+- ``wall_time``: seconds the generation took up to writing its outputs (trials,
+  scoring, breeding, re-evaluation; writing the outputs and the checkpoint comes
+  after and is timed by ``bench/generation.py``); ``evaluation_time``: seconds of
+  it spent waiting for the evaluator (trials and re-evaluation, with SDBC
   extraction, in whatever processes);
 - ``weight:<dimension name>``, one per SDBC dimension: the NS-SD+ weights in force
   (delta + mutual information in bits; empty for the other treatments).
