@@ -247,20 +247,6 @@ def test_description_gives_the_papers_27_dimensions() -> None:
     np.testing.assert_array_equal(vectors[:, -1], result.length.ravel())
 
 
-def test_batch_matches_a_trial_alone() -> None:
-    """The same genome and seed, alone and in slot 41 of a batch of random
-    genomes: identical to the bit."""
-    task = PredatorPrey(PredatorPreyConfig(max_steps=200))
-    rng = np.random.default_rng(3)
-    genomes = rng.uniform(-1, 1, (60, task.genome_length))
-    seeds = rng.integers(0, 2**31, (60, 1))
-    batch = run_batch(task, genomes, seeds)
-    alone = run_batch(task, genomes[41:42], seeds[41:42])
-    assert batch.fitness[41, 0] == alone.fitness[0, 0]
-    np.testing.assert_array_equal(batch.characterisation[41], alone.characterisation[0])
-    assert batch.length[41, 0] == alone.length[0, 0]
-
-
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
@@ -280,3 +266,11 @@ def test_bad_settings_are_named(overrides: dict, message: str) -> None:
         PredatorPreyConfig(**overrides)
     with pytest.raises(ValueError, match=message):
         make_task("predator_prey", **overrides)
+
+
+def test_a_trial_is_the_same_alone_in_a_batch_in_any_space_and_process(
+    same_everywhere,
+) -> None:
+    """A 20 x 20 chase zone: predators start 2 apart and meet, and push or chase
+    the prey out at different steps."""
+    same_everywhere("predator_prey", arena_size=20.0, prey_margin=6.0, max_steps=150)

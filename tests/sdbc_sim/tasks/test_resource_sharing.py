@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
-from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
+from sdbc_sim.engine import TrialStepper, run_batch
 from sdbc_sim.task_state import TaskState
 from sdbc_sim.tasks import make_task
 from sdbc_sim.tasks.resource_sharing import ResourceSharing, ResourceSharingConfig
@@ -313,22 +313,6 @@ def test_description_gives_the_papers_21_dimensions() -> None:
     np.testing.assert_array_equal(vectors[:, -1], result.length.ravel())
 
 
-def test_batch_matches_a_trial_alone() -> None:
-    """The same genome and seed, alone and in slot 37 of a batch of random
-    genomes: identical to the bit."""
-    task = ResourceSharing(ResourceSharingConfig(max_steps=150))
-    rng = np.random.default_rng(3)
-    genomes = rng.uniform(-1, 1, (60, task.genome_length))
-    seeds = rng.integers(0, 2**31, (60, 1))
-    batch = run_batch(task, genomes, seeds)
-    alone = run_batch(task, genomes[37:38], seeds[37:38])
-    assert batch.fitness[37, 0] == alone.fitness[0, 0]
-    np.testing.assert_array_equal(batch.characterisation[37], alone.characterisation[0])
-    assert batch.length[37, 0] == alone.length[0, 0]
-    sim = BatchSimulation(task, seeds[:, 0], genomes)
-    assert sim.sensors().shape == (60, 3, 8)
-
-
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
@@ -370,3 +354,16 @@ def test_unplaceable_team_is_refused_before_running() -> None:
     task = make_task("resource_sharing", arena_size=60.0, n_robots=5)
     with pytest.raises(ValueError, match="no start for robot 4"):
         run_batch(task, np.zeros((1, 75)), np.zeros((1, 1), dtype=np.int64))
+
+
+def test_a_trial_is_the_same_alone_in_a_batch_in_any_space_and_process(
+    same_everywhere,
+) -> None:
+    """A small arena where robots meet, and little energy, so trials end apart."""
+    same_everywhere(
+        "resource_sharing",
+        arena_size=40.0,
+        start_separation=12.0,
+        initial_energy=150.0,
+        max_steps=150,
+    )
