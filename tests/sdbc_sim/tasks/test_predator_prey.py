@@ -192,6 +192,24 @@ def test_sensors_by_hand(placed) -> None:
     )
 
 
+def test_sensors_sort_any_number_of_predators_nearest_first(placed) -> None:
+    """Five predators: from predator 0 (facing +y) the others are 10 (right), 4
+    (ahead), 7 (left) and 4 (left) away; the tie keeps index order."""
+    start = [[50.0, 10.0], [60.0, 10.0], [50.0, 14.0], [43.0, 10.0], [46.0, 10.0]]
+    task = placed(
+        make_task("predator_prey", n_predators=5),
+        [*start, [50.0, 50.0]],
+        [UP] * 5 + [0.0],
+    )
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    x = stepper.sensors()
+    assert x.shape == (5, 10)
+    edges = np.array([4, 4, 7, 10]) - 3
+    np.testing.assert_allclose(x[0, 0:8:2], 2 * edges / 100 - 1, atol=1e-12)
+    np.testing.assert_allclose(x[0, 1:8:2], [0.0, 0.5, 0.5, -0.5], atol=1e-12)
+
+
 def test_predator_outputs_set_speed_and_turn(placed) -> None:
     task = placed(
         PredatorPrey(),

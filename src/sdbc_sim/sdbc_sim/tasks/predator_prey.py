@@ -68,7 +68,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sdbc_sim.network import NetworkShape
-from sdbc_sim.sensors import bearing, norm, pairwise_offsets, robot_sum, wrap_angle
+from sdbc_sim.sensors import bearing, norm, robot_sum, wrap_angle
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
@@ -244,8 +244,9 @@ class PredatorPrey(Task):
                 EntityGroupSpec("Boundary", (), 1, 1, True, Geometry.POLYGON),
             ),
         )
-        self._others = n - 1
-        self._self_distance = np.where(np.eye(n, dtype=bool), np.inf, 0.0)
+        self._others = np.array(
+            [[j for j in range(n) if j != i] for i in range(n)], dtype=np.intp
+        ).reshape(n, n - 1)
         self._predator_present = np.ones((1, n), dtype=bool)
         self._predator_radii = np.full((1, n), c.predator_radius)
         self._prey_radii = np.full((1, 1), c.prey_radius)
@@ -282,18 +283,33 @@ class PredatorPrey(Task):
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle[:, :n], bodies.sin_angle[:, :n]
         scale = 2.0 / c.arena_size
-        if self._others:
-            dx, dy, dist = pairwise_offsets(pos)
-            order = np.argsort(dist + self._self_distance, axis=-1, kind="stable")
-            order = order[..., : self._others]
-            d = np.take_along_axis(dist, order, axis=-1)
-            edge = np.maximum(d - 2.0 * c.predator_radius, 0.0)
-            out[..., 0 : 2 * self._others : 2] = edge * scale - 1.0
-            ox = np.take_along_axis(dx, order, axis=-1)
-            oy = np.take_along_axis(dy, order, axis=-1)
-            out[..., 1 : 2 * self._others : 2] = bearing(
-                ox, oy, cos_h[..., None], sin_h[..., None]
-            ) * (1.0 / np.pi)
+        if n > 1:
+            # Every other predator's reading, then sorted nearest first by a stable
+            # bubble sort of compare-exchanges (ties keep index order).
+            other = pos[:, self._others]
+            ox = other[..., 0] - pos[..., 0, None]
+            oy = other[..., 1] - pos[..., 1, None]
+            d = norm(ox, oy)
+            reading = np.maximum(d - 2.0 * c.predator_radius, 0.0) * scale - 1.0
+            angle = bearing(ox, oy, cos_h[..., None], sin_h[..., None]) * (1.0 / np.pi)
+            cols = [(d[..., j], reading[..., j], angle[..., j]) for j in range(n - 1)]
+            for end in range(n - 2, 0, -1):
+                for j in range(end):
+                    (da, ra, aa), (db, rb, ab) = cols[j], cols[j + 1]
+                    swap = db < da
+                    cols[j] = (
+                        np.where(swap, db, da),
+                        np.where(swap, rb, ra),
+                        np.where(swap, ab, aa),
+                    )
+                    cols[j + 1] = (
+                        np.where(swap, da, db),
+                        np.where(swap, ra, rb),
+                        np.where(swap, aa, ab),
+                    )
+            for k, (_, r, a) in enumerate(cols):
+                out[..., 2 * k] = r
+                out[..., 2 * k + 1] = a
         px = bodies.position[:, n : n + 1, 0] - pos[..., 0]
         py = bodies.position[:, n : n + 1, 1] - pos[..., 1]
         edge = np.maximum(norm(px, py) - (c.predator_radius + c.prey_radius), 0.0)
