@@ -217,6 +217,13 @@ class Evaluator(ABC):
         self.close()
 
 
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the OS tells)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
 def _limit_threads() -> None:
     # One simulation process per core: BLAS threads would only oversubscribe.
     from threadpoolctl import threadpool_limits
@@ -229,12 +236,12 @@ class LocalEvaluator(Evaluator):
 
     Args:
         spec: The task.
-        workers: Number of processes; None means every core (``os.cpu_count()``).
+        workers: Number of processes; None means every core this process may use.
     """
 
     def __init__(self, spec: TaskSpec, workers: int | None = None) -> None:
         if workers is None:
-            workers = os.cpu_count() or 1
+            workers = available_cores()
         if workers < 1:
             raise ValueError(f"workers must be at least 1, got {workers}")
         self.spec = spec
