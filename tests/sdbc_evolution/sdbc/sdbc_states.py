@@ -113,11 +113,13 @@ def random_state(
     step: int = 1,
     n_segments: int = 3,
     p_present: float = 0.8,
+    previous: TaskState | None = None,
 ) -> TaskState:
     """A random but valid task state: sizes within limits, finite values where
-    present and NaN garbage where absent (which must never leak into a feature)."""
+    present and NaN garbage where absent (which must never leak into a feature).
+    Static groups keep the geometry of the ``previous`` step's state, if given."""
     groups = []
-    for spec in description.groups:
+    for k, spec in enumerate(description.groups):
         s, a = spec.max_size, len(spec.attributes)
         present = rng.random((n_trials, s)) < p_present
         # Honour min_size: the first min_size slots are always filled.
@@ -126,6 +128,8 @@ def random_state(
         attributes[~present] = np.nan
         if spec.geometry is Geometry.POLYGON:
             segments = rng.uniform(-20.0, 20.0, (n_trials, s, n_segments, 2, 2))
+            if previous is not None and spec.is_static:
+                segments = previous.groups[k].segments
             groups.append(GroupState(present, attributes, segments=segments))
             continue
         centres = rng.uniform(-20.0, 20.0, (n_trials, s, 2))
@@ -135,6 +139,8 @@ def random_state(
             if spec.geometry is Geometry.CIRCLE
             else None
         )
+        if previous is not None and spec.is_static:
+            centres, radii = previous.groups[k].centres, previous.groups[k].radii
         groups.append(GroupState(present, attributes, centres=centres, radii=radii))
     return TaskState(step, np.ones(n_trials, dtype=bool), tuple(groups))
 

@@ -7,6 +7,13 @@ import math
 import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor, dimension_names
+from sdbc_sim.task_state import (
+    EntityGroupSpec,
+    Geometry,
+    GroupState,
+    TaskDescription,
+    TaskState,
+)
 from sdbc_states import SMALL, SMALL_NAMES, small_state
 
 NAN = math.nan
@@ -115,12 +122,28 @@ def test_nan_in_an_ended_trial_is_ignored() -> None:
     assert np.isfinite(extractor.characterisations()).all()
 
 
-def test_a_group_below_its_minimum_size_is_named() -> None:
+def test_a_full_group_missing_an_entity_is_named() -> None:
     extractor = SdbcExtractor()
     extractor.start(SMALL, 1)
     state = small_state([[True, True, True]])
     state.groups[1].present = np.zeros((1, 1), dtype=bool)
-    with pytest.raises(ValueError, match=r"group 'Beacon' holds 0 entities, outside"):
+    with pytest.raises(ValueError, match=r"group 'Beacon' \(min_size = max_size = 1\)"):
+        extractor.observe(state)
+
+
+def test_a_group_below_its_minimum_size_is_named() -> None:
+    description = TaskDescription(
+        "pair", (EntityGroupSpec("Dots", (), 2, 3, False, Geometry.POINT),)
+    )
+    present = np.array([[True, True, False], [False, True, False]])
+    state = TaskState(
+        1,
+        np.ones(2, bool),
+        (GroupState(present, np.empty((2, 3, 0)), centres=np.zeros((2, 3, 2))),),
+    )
+    extractor = SdbcExtractor()
+    extractor.start(description, 2)
+    with pytest.raises(ValueError, match=r"trial 1: group 'Dots' holds 1 entities"):
         extractor.observe(state)
 
 

@@ -108,8 +108,10 @@ def test_streaming_a_batch_equals_aggregating_each_trial(
     extractor.start(description, n_trials)
     features = StepFeatures(description)
     samples = []
+    state = None
     for step in range(1, n_steps + 1):
-        state = random_state(description, n_trials, rng, step=step)
+        # Static entities never move: their geometry stays that of step 1.
+        state = random_state(description, n_trials, rng, step=step, previous=state)
         state.active = step <= lengths
         extractor.observe(state)
         samples.append(features.values(state))

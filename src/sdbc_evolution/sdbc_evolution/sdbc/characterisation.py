@@ -45,7 +45,8 @@ class SdbcExtractor:
     It is an engine observer (:class:`sdbc_sim.observer.Observer`): the engine calls
     :meth:`start` once per batch and :meth:`observe` after every step; then
     :meth:`characterisations` gives the (B, D) raw vectors. It keeps O(B F) numbers,
-    never the trajectory, and can be reused for the next batch.
+    never the trajectory, and can be reused for the next batch. The shapes of static
+    groups are read at a batch's first step only: static entities never move.
 
     Args:
         check_values: Check, every step, that no present entity of an active trial
@@ -64,11 +65,8 @@ class SdbcExtractor:
         """Prepares for a batch of ``n_trials`` trials of the described task."""
         if n_trials < 1:
             raise ValueError(f"SDBC extractor: n_trials {n_trials} < 1")
-        self._features = StepFeatures(description)
-        f = self._features.n_features
-        self._aggregator = TrialAggregator(n_trials, f)
-        self._total = np.empty((f, n_trials))
-        self._count = np.empty((f, n_trials))
+        self._features = StepFeatures(description, fixed_static_geometry=True)
+        self._aggregator = TrialAggregator(n_trials, self._features.n_features)
         self._step = 0
         self._previous_active = np.ones(n_trials, dtype=bool)
 
@@ -105,17 +103,17 @@ class SdbcExtractor:
                 f"SDBC extractor, task {description.name!r}, step {state.step}: trial "
                 f"{int(np.flatnonzero(resumed)[0])} is active again after it ended"
             )
-        features.compute(state, self._total, self._count)
+        total, count = features.compute(state)
         if self.check_values:
-            self._check(state)
-        self._aggregator.update_from_totals(self._total, self._count, active)
+            self._check(state, total)
+        self._aggregator.update_from_totals(total, count, active)
         self._step = state.step
         self._previous_active = active.copy()
 
-    def _check(self, state: TaskState) -> None:
+    def _check(self, state: TaskState, total: np.ndarray) -> None:
         description = self._features.description
         active = state.active
-        bad = ~np.isfinite(self._total) & active
+        bad = ~np.isfinite(total) & active
         if bad.any():
             f, trial = np.argwhere(bad)[0]
             raise ValueError(
@@ -124,8 +122,10 @@ class SdbcExtractor:
                 "finite; a present entity has a NaN or infinite attribute or coordinate"
             )
         for spec, group in zip(description.groups, state.groups, strict=True):
-            if spec.min_size == 0:
-                continue  # S = max_size slots: only the lower limit can be broken.
+            if spec.min_size in (0, spec.max_size):
+                # S = max_size slots, so only a lower limit can be broken, and
+                # StepFeatures checks full groups (min_size = max_size) itself.
+                continue
             size = np.broadcast_to(
                 np.count_nonzero(group.present, axis=1), active.shape
             )

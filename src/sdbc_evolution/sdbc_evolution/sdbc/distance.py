@@ -76,16 +76,34 @@ class Segments:
         ay: y of every segment's first end point, shaped as ``ax``.
         bx: x of every segment's second end point, shaped as ``ax``.
         by: y of every segment's second end point, shaped as ``ax``.
+        abx: ``bx - ax``; computed if not given.
+        aby: ``by - ay``; computed if not given.
+        inverse: ``1 / |b - a|^2``, 0 for a degenerate segment; computed if not given.
     """
 
     ax: np.ndarray
     ay: np.ndarray
     bx: np.ndarray
     by: np.ndarray
+    abx: np.ndarray | None = None
+    aby: np.ndarray | None = None
+    inverse: np.ndarray | None = None
 
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(ax, ay, bx, by)``."""
-        return self.ax, self.ay, self.bx, self.by
+    def __post_init__(self) -> None:
+        if self.abx is None or self.aby is None or self.inverse is None:
+            abx = self.bx - self.ax
+            aby = self.by - self.ay
+            length2 = abx * abx + aby * aby
+            inverse = np.divide(
+                1.0, length2, out=np.zeros_like(length2), where=length2 > 0
+            )
+            object.__setattr__(self, "abx", abx)
+            object.__setattr__(self, "aby", aby)
+            object.__setattr__(self, "inverse", inverse)
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """All seven arrays, in field order."""
+        return self.ax, self.ay, self.bx, self.by, self.abx, self.aby, self.inverse
 
 
 Shapes = Discs | Segments
@@ -136,23 +154,19 @@ def pick(
         r = None if shapes.r is None else take(shapes.r, 0, "r")
         return Discs(x=take(shapes.x, 0, "x"), y=take(shapes.y, 0, "y"), r=r)
     return Segments(
-        *(
-            take(v, 1, part)
-            for v, part in zip(shapes.arrays(), ("ax", "ay", "bx", "by"), strict=True)
-        )
+        *(take(v, 1, f"segments {k}") for k, v in enumerate(shapes.arrays()))
     )
 
 
 def expand(shapes: Shapes, axis: int) -> Shapes:
-    """The shapes with a broadcast axis inserted at slot axis ``axis`` (a view)."""
-
-    def insert(array: np.ndarray, offset: int) -> np.ndarray:
-        return np.expand_dims(array, offset + axis)
-
+    """The shapes with a broadcast axis inserted at slot axis ``axis`` (0 or 1; a
+    view)."""
     if isinstance(shapes, Discs):
-        r = None if shapes.r is None else insert(shapes.r, 0)
-        return Discs(x=insert(shapes.x, 0), y=insert(shapes.y, 0), r=r)
-    return Segments(*(insert(v, 1) for v in shapes.arrays()))
+        index = (None,) if axis == 0 else (slice(None), None)
+        r = None if shapes.r is None else shapes.r[index]
+        return Discs(x=shapes.x[index], y=shapes.y[index], r=r)
+    index = (slice(None), None) if axis == 0 else (slice(None), slice(None), None)
+    return Segments(*(v[index] for v in shapes.arrays()))
 
 
 def point_segment_distance2(
@@ -176,13 +190,8 @@ def point_segment_distance2(
         key: Names this use in ``workspace``.
     """
     ws = workspace if workspace is not None else Workspace()
-    ax, ay, bx, by = segments.arrays()
-    abx = np.subtract(bx, ax, out=ws.get((key, "abx"), ax.shape))
-    aby = np.subtract(by, ay, out=ws.get((key, "aby"), ax.shape))
-    inverse = ws.get((key, "inverse"), ax.shape)
-    np.multiply(abx, abx, out=inverse)
-    inverse += aby * aby
-    np.divide(1.0, inverse, out=inverse, where=inverse > 0)
+    ax, ay, abx, aby = segments.ax, segments.ay, segments.abx, segments.aby
+    inverse = segments.inverse
     shape = np.broadcast_shapes(px.shape, ax.shape)
     dx = np.subtract(px, ax, out=ws.get((key, "dx"), shape))
     dy = np.subtract(py, ay, out=ws.get((key, "dy"), shape))

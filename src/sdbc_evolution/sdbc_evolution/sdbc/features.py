@@ -226,33 +226,88 @@ class StepFeatures:
     feature. Arrays are feature-major, (F, B), so that each feature is one
     contiguous row.
 
+    A group with ``min_size == max_size`` is *full*: all its slots hold an entity at
+    every step (checked), so its sums need no mask and its counts are constants.
+
     Args:
         description: The task description.
+        fixed_static_geometry: Read the geometry of static groups at the first
+            step only and reuse it: static entities never move, so within one
+            batch their shapes are fixed (their presence is still read every step).
+            For a new batch, use a new instance.
     """
 
-    def __init__(self, description: TaskDescription) -> None:
+    def __init__(
+        self, description: TaskDescription, fixed_static_geometry: bool = False
+    ) -> None:
         self.description = description
         self.features = behaviour_features(description)
+        self.fixed_static_geometry = fixed_static_geometry
         self._pairs = {
             g: np.triu_indices(group.max_size, k=1)
             for g, group in enumerate(description.groups)
             if has_dispersion(group)
         }
+        self._full = tuple(g.min_size == g.max_size for g in description.groups)
         self._workspace = Workspace()
+        self._static_shapes: dict[int, Shapes] = {}
+        self._constant_counts = {
+            f: c
+            for f, feature in enumerate(self.features)
+            if (c := self._constant_count(feature)) is not None
+        }
+        self._total: np.ndarray | None = None
+        self._count: np.ndarray | None = None
 
     @property
     def n_features(self) -> int:
         """F, the number of per-step features."""
         return len(self.features)
 
-    def compute(self, state: TaskState, total: np.ndarray, count: np.ndarray) -> None:
-        """Fills ``total`` and ``count``, both (F, B) float64, for one step."""
+    def _buffers(self, n_trials: int) -> tuple[np.ndarray, np.ndarray]:
+        """The (F, B) total and count arrays, with the constant counts filled in."""
+        if self._total is None or self._total.shape[1] != n_trials:
+            self._total = np.empty((self.n_features, n_trials))
+            self._count = np.empty((self.n_features, n_trials))
+            for f, value in self._constant_counts.items():
+                self._count[f] = value
+        return self._total, self._count
+
+    def _constant_count(self, feature: BehaviourFeature) -> float | None:
+        """The count of a feature whose entities or pairs are always all there."""
         groups = self.description.groups
+        n = float(groups[feature.group].max_size)
+        if feature.kind is FeatureKind.GROUP_SIZE:
+            return 1.0
+        if not self._full[feature.group]:
+            return None
+        if feature.kind is FeatureKind.MEAN_STATE:
+            return n
+        if feature.kind is FeatureKind.DISPERSION:
+            return n * (n - 1.0) / 2.0
+        if self._full[feature.other]:
+            return n * groups[feature.other].max_size
+        return None
+
+    def compute(self, state: TaskState) -> tuple[np.ndarray, np.ndarray]:
+        """``(total, count)``, both (F, B) float64, for one step; the arrays are
+        overwritten by the next call.
+
+        Raises:
+            ValueError: If a full group misses an entity in an active trial.
+        """
+        groups = self.description.groups
+        full = self._full
         ws = self._workspace
+        total, count = self._buffers(state.active.shape[0])
         present: dict[int, np.ndarray] = {}
-        sizes: dict[int, np.ndarray] = {}
+        absent: dict[int, np.ndarray] = {}
+        sizes: dict[int, np.ndarray | float] = {}
         shapes: dict[int, Shapes] = {}
-        attribute_sums: dict[int, np.ndarray] = {}
+
+        for g, is_full in enumerate(full):
+            if is_full:
+                self._check_full(state, g)
 
         def presence(g: int) -> np.ndarray:
             # Slot-major (S, B|1): sums over entities become row additions.
@@ -262,52 +317,67 @@ class StepFeatures:
                 np.copyto(present[g], source)
             return present[g]
 
-        def size(g: int) -> np.ndarray:
-            if g not in sizes:
+        def absence(g: int) -> np.ndarray:
+            if g not in absent:
                 p = presence(g)
-                sizes[g] = np.add.reduce(
-                    p, axis=0, dtype=np.float64, out=ws.get(("size", g), p.shape[1:])
+                absent[g] = np.logical_not(
+                    p, out=ws.get(("absent", g), p.shape, np.bool_)
                 )
+            return absent[g]
+
+        def size(g: int) -> np.ndarray | float:
+            if g not in sizes:
+                if full[g]:
+                    sizes[g] = float(groups[g].max_size)
+                else:
+                    p = presence(g)
+                    out = ws.get(("size", g), p.shape[1:])
+                    sizes[g] = np.add.reduce(p, axis=0, dtype=np.float64, out=out)
             return sizes[g]
 
         def shape(g: int) -> Shapes:
-            if g not in shapes:
-                shapes[g] = group_shapes(state.groups[g], groups[g].geometry, ws, g)
+            if g in shapes:
+                return shapes[g]
+            fixed = self.fixed_static_geometry and groups[g].is_static
+            if fixed and g in self._static_shapes:
+                shapes[g] = self._static_shapes[g]
+            else:
+                key = ("static", g) if fixed else g
+                shapes[g] = group_shapes(state.groups[g], groups[g].geometry, ws, key)
+                if fixed:
+                    self._static_shapes[g] = shapes[g]
             return shapes[g]
 
-        def masked_sum(f: int, d: np.ndarray, valid: np.ndarray, axes: tuple[int, ...]):
-            # Absent slots may hold anything, NaN included: zero them, never multiply.
-            invalid = np.logical_not(valid, out=valid)
-            np.copyto(d, 0.0, where=invalid)
-            total[f] = np.add.reduce(
-                d, axis=axes, out=ws.get(("sum", f), d.shape[len(axes) :])
-            )
+        def reduce_into(f: int, d: np.ndarray, axes: tuple[int, ...]) -> None:
+            if d.shape[len(axes) :] == total.shape[1:]:
+                np.add.reduce(d, axis=axes, out=total[f])
+            else:
+                total[f] = np.add.reduce(d, axis=axes)
 
+        constant = self._constant_counts
         for f, feature in enumerate(self.features):
             g = feature.group
             spec = groups[g]
             if feature.kind is FeatureKind.GROUP_SIZE:
                 # Eq. 2.
                 total[f] = (size(g) - spec.min_size) / (spec.max_size - spec.min_size)
-                count[f] = 1.0
             elif feature.kind is FeatureKind.MEAN_STATE:
-                # Eq. 3: one masked sum over slots gives every attribute's numerator.
-                if g not in attribute_sums:
+                # Eq. 3: one sum over slots gives every attribute's numerator, into
+                # the group's consecutive attribute rows.
+                if feature.attribute == 0:
                     source = state.groups[g].attributes.transpose(2, 1, 0)
-                    masked = ws.get(("attributes", g), source.shape)
-                    np.copyto(masked, source)
-                    p = presence(g)
-                    absent_g = np.logical_not(
-                        p, out=ws.get(("absent", g), p.shape, np.bool_)
-                    )
-                    np.copyto(masked, 0.0, where=absent_g[None])
-                    attribute_sums[g] = np.add.reduce(
-                        masked,
-                        axis=1,
-                        out=ws.get(("attribute sums", g), masked.shape[::2]),
-                    )
-                total[f] = attribute_sums[g][feature.attribute]
-                count[f] = size(g)
+                    values = ws.get(("attributes", g), source.shape)
+                    np.copyto(values, source)
+                    if not full[g]:
+                        # Absent slots may hold anything, NaN included: zero them.
+                        np.copyto(values, 0.0, where=absence(g)[None])
+                    rows = total[f : f + len(spec.attributes)]
+                    if values.shape[2:] == rows.shape[1:]:
+                        np.add.reduce(values, axis=1, out=rows)
+                    else:
+                        rows[...] = np.add.reduce(values, axis=1)
+                if f not in constant:
+                    count[f] = size(g)
             elif feature.kind is FeatureKind.DISPERSION:
                 # Eq. 4 as the mean over unordered pairs i < j of present entities.
                 i, j = self._pairs[g]
@@ -317,28 +387,51 @@ class StepFeatures:
                     ws,
                     f,
                 )
-                p = presence(g)
-                valid = ws.get(("valid", f), (len(i),) + p.shape[1:], np.bool_)
-                np.logical_and(p[i], p[j], out=valid)
-                masked_sum(f, d, valid, (0,))
-                n = size(g)
-                count[f] = n * (n - 1.0) / 2.0
+                if not full[g]:
+                    a = absence(g)
+                    invalid = ws.get(("invalid", f), (len(i),) + a.shape[1:], np.bool_)
+                    np.logical_or(a[i], a[j], out=invalid)
+                    np.copyto(d, 0.0, where=invalid)
+                    n = size(g)
+                    count[f] = n * (n - 1.0) / 2.0
+                reduce_into(f, d, (0,))
             else:
                 # Eq. 5: the mean over all pairs of present entities of g and h.
                 h = feature.other
                 d = entity_distance(expand(shape(g), 1), expand(shape(h), 0), ws, f)
-                pg, ph = presence(g), presence(h)
-                valid = ws.get(("valid", f), d.shape, np.bool_)
-                np.logical_and(pg[:, None], ph[None, :], out=valid)
-                masked_sum(f, d, valid, (0, 1))
-                np.multiply(size(g), size(h), out=count[f])
+                if not (full[g] and full[h]):
+                    if full[g]:
+                        invalid = absence(h)[None]
+                    elif full[h]:
+                        invalid = absence(g)[:, None]
+                    else:
+                        invalid = ws.get(("invalid", f), d.shape, np.bool_)
+                        np.logical_or(
+                            absence(g)[:, None], absence(h)[None], out=invalid
+                        )
+                    np.copyto(d, 0.0, where=invalid)
+                    count[f] = size(g) * size(h)
+                reduce_into(f, d, (0, 1))
+        return total, count
+
+    def _check_full(self, state: TaskState, g: int) -> None:
+        present = state.groups[g].present
+        if present.shape[0] == 1:
+            missing = not present.all()
+        else:
+            missing = not np.logical_or(present, ~state.active[:, None]).all()
+        if missing:
+            spec = self.description.groups[g]
+            raise ValueError(
+                f"task {self.description.name!r}, step {state.step}: group "
+                f"{spec.name!r} (min_size = max_size = {spec.max_size}) misses an "
+                "entity in an active trial"
+            )
 
     def values(self, state: TaskState) -> np.ndarray:
         """The (B, F) feature values of one step, NaN where undefined."""
         n = state.active.shape[0]
         validate_task_state(self.description, state, n)
-        total = np.empty((self.n_features, n))
-        count = np.empty((self.n_features, n))
-        self.compute(state, total, count)
+        total, count = self.compute(state)
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(count > 0, total / count, np.nan).T

@@ -29,8 +29,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from sklearn.cluster import KMeans
-from sklearn.metrics import mutual_info_score
 
 Discretisation = Literal["equal_width", "kmeans"]
 DISCRETISATIONS: tuple[str, ...] = ("equal_width", "kmeans")
@@ -102,6 +100,10 @@ def kmeans_classes(
     distinct, inverse = np.unique(values, return_inverse=True)
     if distinct.shape[0] <= n_clusters:
         return inverse
+    # Imported here: scikit-learn takes a second to import, and the engine's worker
+    # processes import this package for the extractor alone.
+    from sklearn.cluster import KMeans
+
     model = KMeans(
         n_clusters=n_clusters, n_init=restarts, random_state=_random_state(seed)
     )
@@ -154,6 +156,8 @@ def mutual_information(
     Returns:
         (D,) mutual information, >= 0.
     """
+    from sklearn.metrics import mutual_info_score
+
     settings = settings or WeightingSettings()
     raw, fitness = _validated(raw, fitness)
     fitness_classes = kmeans_classes(
