@@ -85,6 +85,8 @@ def test_a_run_writes_the_documented_layout(tmp_path: Path, treatment: str) -> N
         g for g in range(5) for _ in range(12)
     ]
     assert (tmp_path / "config.yaml").read_text().startswith("task: toy")
+    for name in ("config.yaml", "checkpoint.npz", "individuals/gen_00004.npz"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o644
 
 
 def test_elites_are_the_head_of_the_previous_order(tmp_path: Path) -> None:

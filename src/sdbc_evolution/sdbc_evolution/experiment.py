@@ -358,7 +358,7 @@ class Experiment:
         state = self.state
         return {
             "fitness": evaluation.fitness,
-            "trial_fitness": evaluation.trial_fitness,
+            "trial_fitness": evaluation.trial_fitness.astype(np.float32),
             "characterisation": evaluation.characterisation.astype(np.float32),
             "sdbc": evaluation.sdbc.astype(np.float32),
             "novelty": scores.novelty,

@@ -36,7 +36,7 @@ Floats are written with Python's ``repr`` (shortest exact round trip).
 
 ``individuals/gen_NNNNN.npz`` arrays, one row per individual in population order:
 
-- ``fitness`` (N,) float64 and ``trial_fitness`` (N, T) float64;
+- ``fitness`` (N,) float64 and ``trial_fitness`` (N, T) float32;
 - ``characterisation`` (N, C) float32: the task-specific characterisation;
 - ``sdbc`` (N, D) float32: the raw (unstandardised) SDBC vector, mean over trials;
 - ``sdbc_names`` (D,) str: the SDBC dimension names;
@@ -81,6 +81,8 @@ BASE_COLUMNS = (
     "wall_time",
     "evaluation_time",
 )
+RESULT_FILE_MODE = 0o644
+"""Permissions of every file written (readable by all, like a plain ``open``)."""
 TIME_COLUMNS = ("wall_time", "evaluation_time")
 """Columns that differ between two otherwise identical runs."""
 
@@ -95,6 +97,8 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        # mkstemp makes the file private; results are for whoever may read the dir.
+        os.chmod(tmp, RESULT_FILE_MODE)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
