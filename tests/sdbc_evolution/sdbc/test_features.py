@@ -285,3 +285,11 @@ def test_malformed_states_are_named(mutate, message: str) -> None:
     mutate(state)
     with pytest.raises(ValueError, match=message):
         validate_task_state(SMALL, state, 2)
+
+
+def test_bad_task_descriptions_are_named() -> None:
+    with pytest.raises(ValueError, match=r"'Agent': min_size 3 > max_size 2"):
+        EntityGroupSpec("Agent", ("x",), 3, 2, False, Geometry.CIRCLE)
+    agent = EntityGroupSpec("Agent", ("x",), 0, 2, False, Geometry.CIRCLE)
+    with pytest.raises(ValueError, match=r"duplicate group names \['Agent'\]"):
+        TaskDescription("twice", (agent, agent))

@@ -99,6 +99,19 @@ def test_an_empty_group_needs_its_geometry_named() -> None:
     assert described == SMALL
 
 
+def test_bad_descriptions_in_messages_are_named() -> None:
+    msg = task_state_to_msg(
+        small_state([[True, True, True]]), SMALL, 0, 1, "small", False
+    )
+    msg.groups[0].min_size = 5
+    with pytest.raises(ValueError, match=r"'Robots': min_size 5 > max_size 3"):
+        task_description_from_msg(msg)
+    msg.groups[0].min_size = 0
+    msg.groups[1].name = "Robots"
+    with pytest.raises(ValueError, match=r"duplicate group names \['Robots'\]"):
+        task_description_from_msg(msg)
+
+
 def message(present=((True, True, True),)):
     return task_state_to_msg(
         small_state([list(present[0])]), SMALL, 0, 5, "small", False
