@@ -63,14 +63,18 @@ class EntityGroupSpec:
         if not self.name:
             raise ValueError("entity group: the name is empty")
         if self.min_size < 0:
-            raise ValueError(f"entity group {self.name!r}: min_size {self.min_size} < 0")
+            raise ValueError(
+                f"entity group {self.name!r}: min_size {self.min_size} < 0"
+            )
         if self.min_size > self.max_size:
             raise ValueError(
                 f"entity group {self.name!r}: min_size {self.min_size} > max_size "
                 f"{self.max_size}"
             )
         if self.max_size < 1:
-            raise ValueError(f"entity group {self.name!r}: max_size {self.max_size} < 1")
+            raise ValueError(
+                f"entity group {self.name!r}: max_size {self.max_size} < 1"
+            )
         if len(set(self.attributes)) != len(self.attributes):
             raise ValueError(f"entity group {self.name!r}: duplicate attribute names")
         object.__setattr__(self, "geometry", Geometry(self.geometry))
