@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Sets up the project on a fresh machine, idempotently: venv, pinned wheels, colcon build.
+"""Sets up the project on a fresh machine, idempotently: venv, wheels, colcon build.
 
 Run by ``scripts/sdbc`` before every command; when nothing changed it does no work
 (a few hundred milliseconds). Steps, each skipped when its stamp is current:
@@ -59,14 +59,18 @@ def check_system() -> None:
     low, high = SUPPORTED_PYTHONS
     if not low <= sys.version_info[:2] <= high:
         fail(
-            f"Python {sys.version_info.major}.{sys.version_info.minor} is not supported: "
+            f"Python {sys.version_info.major}.{sys.version_info.minor} is not "
+            "supported: "
             f"the ROS 2 Jazzy wheels exist for CPython {low[0]}.{low[1]} to "
             f"{high[0]}.{high[1]}. Run with PYTHON=python3.11 scripts/sdbc ..."
         )
     missing = [tool for tool in SYSTEM_TOOLS if shutil.which(tool) is None]
     if missing:
         hints = "; ".join(f"{tool}: {SYSTEM_TOOLS[tool]}" for tool in missing)
-        fail(f"missing system tools needed to build sdbc_msgs: {', '.join(missing)} ({hints})")
+        fail(
+            "missing system tools needed to build sdbc_msgs: "
+            f"{', '.join(missing)} ({hints})"
+        )
 
 
 def digest(paths: list[Path], extra: str = "") -> str:
@@ -116,13 +120,17 @@ def venv_include_dirs() -> tuple[str, str]:
 
 
 def fix_cmake_exports() -> None:
-    """Points the rosidl Python exports at this interpreter (pitfall 1 of the wheels)."""
+    """Points the rosidl Python exports at this interpreter (wheel pitfall 1)."""
     python_include, numpy_include = venv_include_dirs()
-    builder_numpy = re.compile(r"/opt/python/cp3\d+-cp3\d+/lib/python3\.\d+/site-packages/numpy/[\w/]*include")
+    builder_numpy = re.compile(
+        r"/opt/python/cp3\d+-cp3\d+/lib/python3\.\d+/site-packages/numpy/[\w/]*include"
+    )
     builder_python = re.compile(r"/opt/python/cp3\d+-cp3\d+/include/python3\.\d+")
     for path in (VENV / "share").glob("*/cmake/*__rosidl_generator_pyExport.cmake"):
         text = path.read_text()
-        fixed = builder_python.sub(python_include, builder_numpy.sub(numpy_include, text))
+        fixed = builder_python.sub(
+            python_include, builder_numpy.sub(numpy_include, text)
+        )
         if fixed != text:
             path.write_text(fixed)
 
@@ -151,7 +159,7 @@ def build_workspace() -> None:
     wanted = digest(package_definition_files(), extra=sys.version)
     if stamp_is(BUILD_STAMP, wanted) and (INSTALL / "setup.bash").exists():
         return
-    # The build sees only the venv's prefix: the workspace's own install/ may not exist yet.
+    # The build sees only the venv's prefix: the workspace's install/ may not exist.
     env = {**runtime_env(), "AMENT_PREFIX_PATH": str(VENV)}
     run(
         [

@@ -23,7 +23,9 @@ HAVE_ROS = all(
 )
 
 
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+def pytest_collection_modifyitems(
+    config: pytest.Config, items: list[pytest.Item]
+) -> None:
     if HAVE_ROS:
         return
     skip = pytest.mark.skip(

@@ -38,4 +38,6 @@ def test_this_test_run_is_confined_to_localhost_and_its_own_domain():
 
 
 def test_ci_sets_localhost_discovery():
-    assert "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in (ROOT / ".ci" / "run").read_text()
+    assert (
+        "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in (ROOT / ".ci" / "run").read_text()
+    )

@@ -1,4 +1,4 @@
-"""Publishes one hand-made TaskState repeatedly; run as a separate process by the test."""
+"""Publishes one hand-made TaskState repeatedly; the test runs it as a process."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import rclpy
 from geometry_msgs.msg import Point
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+
 from sdbc_msgs.msg import Entity, EntityGroup, TaskState
 
 
@@ -41,12 +42,16 @@ def sample_task_state() -> TaskState:
         max_size=1,
         is_static=True,
         entities=[
-            Entity(geometry=Entity.GEOMETRY_POINT, state=[1.0], centre=Point(x=-7.0, y=99.0))
+            Entity(
+                geometry=Entity.GEOMETRY_POINT,
+                state=[1.0],
+                centre=Point(x=-7.0, y=99.0),
+            )
         ],
     )
     wall_points = [(0.0, 87.5), (0.0, 200.0), (200.0, 200.0), (200.0, 0.0), (0.0, 0.0)]
     segments = []
-    for (x0, y0), (x1, y1) in zip(wall_points, wall_points[1:]):
+    for (x0, y0), (x1, y1) in zip(wall_points, wall_points[1:], strict=False):
         segments += [Point(x=x0, y=y0), Point(x=x1, y=y1)]
     walls = EntityGroup(
         name="Wall",
@@ -60,7 +65,10 @@ def sample_task_state() -> TaskState:
         name="Prey", attribute_names=["x"], min_size=0, max_size=1, is_static=False
     )
     msg = TaskState(
-        task="hand_made", groups=[robots, beacons, walls, empty], trial_id=2**40 + 7, step=42
+        task="hand_made",
+        groups=[robots, beacons, walls, empty],
+        trial_id=2**40 + 7,
+        step=42,
     )
     msg.header.frame_id = "arena"
     msg.header.stamp.sec = 1234

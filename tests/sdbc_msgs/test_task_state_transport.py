@@ -32,6 +32,7 @@ def test_task_state_from_another_process_arrives_intact(ros_home):
     import rclpy
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
+
     from sdbc_msgs.msg import Entity, TaskState
 
     sys.path.insert(0, str(PUBLISHER.parent))
@@ -39,9 +40,15 @@ def test_task_state_from_another_process_arrives_intact(ros_home):
 
     expected = sample_task_state()
     kinds = {e.geometry for g in expected.groups for e in g.entities}
-    assert kinds == {Entity.GEOMETRY_CIRCLE, Entity.GEOMETRY_POINT, Entity.GEOMETRY_POLYGON}
+    assert kinds == {
+        Entity.GEOMETRY_CIRCLE,
+        Entity.GEOMETRY_POINT,
+        Entity.GEOMETRY_POLYGON,
+    }
 
-    publisher = subprocess.Popen([sys.executable, str(PUBLISHER)], env=os.environ.copy())
+    publisher = subprocess.Popen(
+        [sys.executable, str(PUBLISHER)], env=os.environ.copy()
+    )
     received: list[TaskState] = []
     rclpy.init()
     node = Node("task_state_listener")
@@ -76,12 +83,24 @@ def test_interface_definitions_are_installed_where_ros_tools_look():
     from ament_index_python.packages import get_package_share_directory
 
     share = Path(get_package_share_directory("sdbc_msgs"))
-    for name in ("Entity", "EntityGroup", "TaskState", "SensorReadings", "RobotCommand",
-                 "GenerationStats"):
+    for name in (
+        "Entity",
+        "EntityGroup",
+        "TaskState",
+        "SensorReadings",
+        "RobotCommand",
+        "GenerationStats",
+    ):
         definition = share / "msg" / f"{name}.msg"
         assert definition.is_file(), definition
         assert definition.read_text().strip()
     assert (share / "srv" / "RunTrial.srv").is_file()
-    marker = share.parent / "ament_index" / "resource_index" / "rosidl_interfaces" / "sdbc_msgs"
+    marker = (
+        share.parent
+        / "ament_index"
+        / "resource_index"
+        / "rosidl_interfaces"
+        / "sdbc_msgs"
+    )
     assert marker.is_file()
     assert "msg/TaskState.msg" in marker.read_text()
