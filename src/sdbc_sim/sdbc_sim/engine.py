@@ -197,6 +197,7 @@ class BatchSimulation:
         speed, turn = task.actuate(self.trials, self.bodies, outputs)
         self.spaces.step(self._drive(speed, turn))
         self.spaces.read(self._rows)
+        self.spaces.separate(self._rows, self.bodies.enabled)
         self.step_count += 1
         k = self.step_count
         ends = task.update(self.trials, self.bodies, k)

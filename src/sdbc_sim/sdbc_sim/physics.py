@@ -14,6 +14,16 @@ before any wall, so their hash ids are 0..n-1 in row order, below the size of
 chipmunk's handle set; the set then iterates them in row order, and two robots of a
 trial always meet in the same order and orientation. ``Space.threads`` is never used.
 
+Contacts. Chipmunk moves bodies before it looks for contacts, so a body that meets
+a wall or another body during a step ends that step overlapping it by up to its
+speed times dt, which chipmunk would only push out during the next step. Here
+chipmunk's own push-out is switched off (``collision_bias`` 1); after every step
+the contacts it found are read in bulk (``get_space_arbiters``), and in every trial
+where one overlaps by more than ``overlap_tolerance`` the bodies are projected
+apart in numpy (:func:`project_apart`), leaving half the tolerance so that chipmunk
+keeps the contact and its solver stops any further approach. The state the engine
+reports then has no overlap beyond the tolerance.
+
 A finished trial's bodies are removed from its Space when the engine compacts;
 chipmunk then reorders its body list, so the mapping from a Space's body order to
 the engine's rows is read back (``BODY_ID``) after every compaction.
@@ -30,9 +40,17 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
+from sdbc_sim.sensors import norm, robot_sum, segment_offsets
+
 _READ = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
 _WRITE = pb.BodyFields.ANGLE | pb.BodyFields.ANGULAR_VELOCITY | pb.BodyFields.FORCE
 _IDS = pb.BodyFields.BODY_ID
+_CONTACT_IDS = (
+    pb.ArbiterFields.BODY_A_ID
+    | pb.ArbiterFields.BODY_B_ID
+    | pb.ArbiterFields.CONTACT_COUNT
+)
+_CONTACT_DEPTH = pb.ArbiterFields.DISTANCE_1
 READ_WIDTH = 5
 """Columns of a state row: x, y, angle, vx, vy."""
 WRITE_WIDTH = 4
@@ -56,22 +74,25 @@ class PhysicsSettings:
             --sweep`` measures it.
         dt: Physics time per control step; speeds are then in units per step.
         iterations: Contact solver iterations per step.
-        collision_slop: Overlap chipmunk tolerates before it pushes bodies apart;
-            well under 5% of the smallest radius.
+        overlap_tolerance: Largest overlap of two bodies, or of a body and a wall,
+            left after a step, as a fraction of the smallest radius.
         friction: Friction of bodies and walls; 0 lets a robot slide along a wall,
             like the authors' robots, which retry a blocked move sideways.
         hash_cell: Spatial hash cell size, a power of two; None picks the smallest
             power of two at least the largest body diameter.
         hash_cells_per_trial: Hash table cells per trial of a Space.
+        separation_iterations: Most projection passes per step in a trial with
+            an overlap (see :func:`project_apart`).
     """
 
     trials_per_space: int = 250
     dt: float = 1.0
     iterations: int = 10
-    collision_slop: float = 0.01
+    overlap_tolerance: float = 0.02
     friction: float = 0.0
     hash_cell: float | None = None
     hash_cells_per_trial: int = 64
+    separation_iterations: int = 8
 
     def __post_init__(self) -> None:
         if self.trials_per_space < 1:
@@ -82,15 +103,21 @@ class PhysicsSettings:
             raise ValueError(f"physics: dt must be positive, got {self.dt}")
         if self.iterations < 1:
             raise ValueError(f"physics: iterations must be >= 1, got {self.iterations}")
-        if not (math.isfinite(self.collision_slop) and self.collision_slop >= 0.0):
+        if not 0.0 < self.overlap_tolerance < 1.0:
             raise ValueError(
-                f"physics: collision_slop must be >= 0, got {self.collision_slop}"
+                "physics: overlap_tolerance must be in (0, 1), got "
+                f"{self.overlap_tolerance}"
             )
         if not (math.isfinite(self.friction) and self.friction >= 0.0):
             raise ValueError(f"physics: friction must be >= 0, got {self.friction}")
         if self.hash_cell is not None and not _is_power_of_two(self.hash_cell):
             raise ValueError(
                 f"physics: hash_cell must be a power of two, got {self.hash_cell}"
+            )
+        if self.separation_iterations < 1:
+            raise ValueError(
+                "physics: separation_iterations must be >= 1, got "
+                f"{self.separation_iterations}"
             )
         if self.hash_cells_per_trial < 1:
             raise ValueError(
@@ -159,6 +186,68 @@ class SlotGrid:
         )
 
 
+def project_apart(
+    pos: np.ndarray,
+    enabled: np.ndarray,
+    radii: np.ndarray,
+    walls: np.ndarray,
+    tolerance: float,
+    iterations: int,
+) -> np.ndarray:
+    """Moves overlapping bodies apart until no overlap exceeds ``tolerance``.
+
+    Jacobi passes: in each, two bodies i, j overlapping by o = r_i + r_j - d_ij >
+    tolerance move apart along their centre line by (o - tolerance / 2) / 2 each,
+    and a body overlapping a wall by o = r_i - dist > tolerance moves out along
+    the wall's normal by o - tolerance / 2; the moves of a pass are summed in index
+    order (so a trial's result never depends on its batch-mates) and applied
+    together. Passes stop when nothing overlaps or after ``iterations``.
+
+    Args:
+        pos: (S, R, 2) centres of the bodies of S trials.
+        enabled: (S, R) bool; switched-off bodies neither move nor push.
+        radii: (R,) radii.
+        walls: (P, 2, 2) wall segments.
+        tolerance: Largest overlap left in place; half of it stays after a move.
+        iterations: Most passes.
+
+    Returns:
+        (S, R, 2) new centres.
+    """
+    pos = pos.copy()
+    target = 0.5 * tolerance
+    n = radii.shape[0]
+    reach = radii[:, None] + radii[None, :]
+    pair = ~np.eye(n, dtype=bool) & enabled[:, :, None] & enabled[:, None, :]
+    for _ in range(iterations):
+        x, y = pos[..., 0], pos[..., 1]
+        dx = x[:, None, :] - x[:, :, None]
+        dy = y[:, None, :] - y[:, :, None]
+        d = norm(dx, dy)
+        over = reach - d
+        hit = pair & (over > tolerance) & (d > 0.0)
+        k = np.where(hit, (over - target) * 0.5 / np.where(d > 0.0, d, 1.0), 0.0)
+        shift_x = -robot_sum(k * dx, axis=2)
+        shift_y = -robot_sum(k * dy, axis=2)
+        moving = hit.any()
+        if walls.shape[0]:
+            off = segment_offsets(pos, walls)
+            dist = norm(off[..., 0], off[..., 1])
+            over_w = radii[None, :, None] - dist
+            hit_w = enabled[:, :, None] & (over_w > tolerance) & (dist > 0.0)
+            k_w = np.where(
+                hit_w, (over_w - target) / np.where(dist > 0.0, dist, 1.0), 0.0
+            )
+            shift_x += robot_sum(k_w * off[..., 0], axis=2)
+            shift_y += robot_sum(k_w * off[..., 1], axis=2)
+            moving = moving or hit_w.any()
+        if not moving:
+            break
+        pos[..., 0] += shift_x
+        pos[..., 1] += shift_y
+    return pos
+
+
 class _Space:
     """One pymunk Space and the bookkeeping of its trials."""
 
@@ -172,6 +261,9 @@ class _Space:
         self.write_buf = pb.Buffer()
         self.write = np.zeros((0, WRITE_WIDTH))
         self.n_extra = 0
+        self.contact_buf = pb.Buffer()
+        self.sorted_ids = np.zeros(0, dtype=np.uintp)
+        self.sorted_rows = np.zeros(0, dtype=np.intp)
 
     @property
     def n_dynamic(self) -> int:
@@ -187,14 +279,39 @@ class _Space:
         self.write = np.zeros((total, WRITE_WIDTH))
         self.write_buf.set_float_buf(self.write.reshape(-1))
 
-    def read_order(self, row_of: dict[int, int]) -> None:
-        """Maps this Space's body order onto the engine's row order."""
+    def index_bodies(self) -> None:
+        """Maps this Space's body order and body ids onto the engine's rows (its
+        trials in increasing order, bodies in order)."""
+        in_rows = [b for t in sorted(self.bodies) for b in self.bodies[t]]
+        row_of = {b.id: i for i, b in enumerate(in_rows)}
+        ids = np.array(list(row_of), dtype=np.uintp)
+        order = np.argsort(ids)
+        self.sorted_ids = ids[order]
+        self.sorted_rows = np.array(list(row_of.values()), dtype=np.intp)[order]
         self.read_buf.clear()
         pb.get_space_bodies(self.space, _IDS, self.read_buf)
         ids = memoryview(self.read_buf.int_buf()).cast("P").tolist()[: self.n_dynamic]
         perm = np.empty(len(ids), dtype=np.intp)
         perm[[row_of[i] for i in ids]] = np.arange(len(ids))
         self.perm = None if np.array_equal(perm, np.arange(len(ids))) else perm
+
+    def rows_of(self, ids: np.ndarray) -> np.ndarray:
+        """Rows of bodies given their ids; -1 for a static body."""
+        at = np.searchsorted(self.sorted_ids, ids)
+        at = np.minimum(at, self.sorted_ids.shape[0] - 1)
+        return np.where(self.sorted_ids[at] == ids, self.sorted_rows[at], -1)
+
+    def deep_contacts(self, tolerance: float) -> np.ndarray:
+        """Rows (of this Space) of the bodies in a contact of the last step that
+        overlaps by more than ``tolerance``."""
+        buf = self.contact_buf
+        buf.clear()
+        pb.get_space_arbiters(self.space, _CONTACT_IDS | _CONTACT_DEPTH, buf)
+        ints = np.frombuffer(buf.int_buf(), dtype=np.uintp).reshape(-1, 3)
+        depth = -np.frombuffer(buf.float_buf(), dtype=np.float64)
+        deep = (ints[:, 2] > 0) & (depth > tolerance)
+        rows = self.rows_of(ints[deep, :2].ravel())
+        return rows[rows >= 0]
 
 
 class TrialSpaces:
@@ -239,7 +356,8 @@ class TrialSpaces:
             sp = _Space(ids)
             space = sp.space
             space.iterations = settings.iterations
-            space.collision_slop = settings.collision_slop
+            # No push-out by chipmunk: overlaps are projected away after each step.
+            space.collision_bias = 1.0
             space.use_spatial_hash(cell, settings.hash_cells_per_trial * len(ids))
             robots: list[pymunk.Body | pymunk.Shape] = []
             for slot, b in enumerate(ids):
@@ -268,7 +386,11 @@ class TrialSpaces:
                     seg.friction = settings.friction
                     space.add(seg)
             sp.attach_write()
+            sp.index_bodies()
             self.spaces.append(sp)
+        self._tolerance = settings.overlap_tolerance * float(np.min(radii))
+        self._radii = np.asarray(radii, dtype=np.float64)
+        self._walls = walls
         self._offsets = np.repeat(offsets, n_bodies, axis=0)
         self._masses = np.full(n_trials * n_bodies, mass)
         self._index_spaces()
@@ -298,6 +420,44 @@ class TrialSpaces:
             data = data.reshape(-1, READ_WIDTH)[: rows.stop - rows.start]
             out[rows] = data if sp.perm is None else data[sp.perm]
         out[:, 0:2] -= self._offsets
+
+    def separate(self, out: np.ndarray, enabled: np.ndarray) -> None:
+        """Projects apart the bodies of every trial where chipmunk found a contact
+        overlapping by more than the tolerance, in ``out`` (as filled by
+        :meth:`read`) and in pymunk; see :func:`project_apart`.
+
+        Args:
+            out: (rows, 5) live body state, trial-local.
+            enabled: (n_live, R) bool, bodies that still collide.
+        """
+        tol = self._tolerance
+        found = []
+        for sp, rows in self._ranges:
+            deep = sp.deep_contacts(tol)
+            if deep.size:
+                found.append((rows.start + deep) // self.n_bodies)
+        if not found:
+            return
+        trials = np.unique(np.concatenate(found))
+        n = self.n_bodies
+        pos = out[:, 0:2].reshape(-1, n, 2)[trials]
+        new = project_apart(
+            pos,
+            enabled[trials],
+            self._radii,
+            self._walls,
+            tol,
+            self.settings.separation_iterations,
+        )
+        t, i = np.nonzero(np.any(new != pos, axis=-1))
+        rows = trials[t] * n + i
+        world = new[t, i] + self._offsets[rows]
+        # What pymunk will hold, so the next read gives the same numbers.
+        out[rows, 0:2] = world - self._offsets[rows]
+        for trial, body, (x, y) in zip(
+            self.live[trials[t]].tolist(), i.tolist(), world.tolist(), strict=True
+        ):
+            self._space_of[trial].bodies[trial][body].position = (x, y)
 
     def step(self, drive: np.ndarray) -> None:
         """Sets (rows, 4) angle, angular velocity and force of every live body and
@@ -333,12 +493,8 @@ class TrialSpaces:
                 objs += sp.shapes.pop(t)
                 objs += sp.bodies.pop(t)
             sp.space.remove(*objs)
-            row_of = {}
-            for t in sorted(sp.bodies):
-                for body in sp.bodies[t]:
-                    row_of[body.id] = len(row_of)
             sp.attach_write()
-            sp.read_order(row_of)
+            sp.index_bodies()
         self.live = self.live[keep]
         rows = np.repeat(keep, self.n_bodies)
         self._offsets = self._offsets[rows]

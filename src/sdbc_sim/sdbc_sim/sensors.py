@@ -96,7 +96,7 @@ def arc_index(bearings: np.ndarray, n_arcs: int) -> np.ndarray:
 def arc_minimum(
     readings: np.ndarray, arcs: np.ndarray, n_arcs: int, empty: float = 1.0
 ) -> np.ndarray:
-    """Per-sector minimum of neighbour readings.
+    """Per-sector minimum of neighbour readings, dense form (every neighbour).
 
     Args:
         readings: (B, N, M) reading of each of M neighbours; ``empty`` (or more)
@@ -112,6 +112,33 @@ def arc_minimum(
     for j in range(n_arcs):
         out[..., j] = robot_min(np.where(arcs == j, readings, empty))
     return np.minimum(out, empty, out=out)
+
+
+def sector_minimum(
+    rows: np.ndarray,
+    bearings: np.ndarray,
+    readings: np.ndarray,
+    n_rows: int,
+    n_arcs: int,
+    empty: float = 1.0,
+) -> np.ndarray:
+    """Per-sector minimum of the readings of sensed objects, sparse form (only the
+    sensed ones, cheaper when few are).
+
+    Args:
+        rows: (K,) which robot (flat row) senses each object.
+        bearings: (K,) bearing of each object from its robot.
+        readings: (K,) reading of each object.
+        n_rows: Number of robots.
+        n_arcs: Number of sectors (see :func:`arc_index`).
+        empty: Value of a sector that senses nothing.
+
+    Returns:
+        (n_rows, n_arcs) minimum reading per robot and sector.
+    """
+    out = np.full((n_rows, n_arcs), empty)
+    np.minimum.at(out, (rows, arc_index(bearings, n_arcs)), readings)
+    return out
 
 
 def ray_segment_distance(
@@ -148,22 +175,31 @@ def ray_segment_distance(
     return nearest
 
 
-def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
-    """Euclidean distance from points to segments.
+def segment_offsets(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Vectors from the nearest point of each segment to each point.
+
+    The nearest point of segment a-b to p is a + s (b - a) with
+    s = clip((p - a).(b - a) / |b - a|^2, 0, 1).
 
     Args:
         points: (..., 2).
         segments: (P, 2, 2).
 
     Returns:
-        (..., P) distance from each point to each segment.
+        (..., P, 2) p minus the nearest point of each segment.
     """
     a = segments[:, 0, :]
     e = segments[:, 1, :] - a
-    ee = (e * e).sum(axis=-1)
+    ee = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1]
     w = points[..., None, :] - a
+    dot = w[..., 0] * e[:, 0] + w[..., 1] * e[:, 1]
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(ee > 0.0, (w * e).sum(axis=-1) / ee, 0.0)
+        s = np.where(ee > 0.0, dot / ee, 0.0)
     s = np.clip(s, 0.0, 1.0)
-    d = w - s[..., None] * e
+    return w - s[..., None] * e
+
+
+def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Euclidean distance from points (..., 2) to segments (P, 2, 2): (..., P)."""
+    d = segment_offsets(points, segments)
     return norm(d[..., 0], d[..., 1])

@@ -57,14 +57,13 @@ import numpy as np
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     TWO_PI,
-    arc_index,
-    arc_minimum,
     bearing,
     norm,
     normalised_reading,
     pairwise_offsets,
     ray_segment_distance,
     robot_sum,
+    sector_minimum,
 )
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -298,17 +297,19 @@ class GateEscape(Task):
 
     def sensors(self, trials: GateEscapeTrials, bodies: BodyState) -> np.ndarray:
         c = self.config
-        pos, heading = bodies.position, bodies.angle
-        b, n = heading.shape
+        pos = bodies.position
+        b, n = bodies.angle.shape
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
-        # Gate centre.
+        # Gate centre; bearings only where it is in range (few robots are).
         gx = self.gate_centre[0] - pos[..., 0]
         gy = self.gate_centre[1] - pos[..., 1]
         gd = norm(gx, gy)
         seen = gd <= c.gate_sensor_range
         out[..., 0] = np.where(seen, normalised_reading(gd, c.gate_sensor_range), 1.0)
-        out[..., 1] = np.where(seen, bearing(gx, gy, cos_h, sin_h) * (1.0 / np.pi), 0.0)
+        out[..., 1] = 0.0
+        if seen.any():
+            out[seen, 1] = bearing(gx[seen], gy[seen], cos_h[seen], sin_h[seen]) / np.pi
         # Other robots still inside, edge to edge.
         dx, dy, dist = pairwise_offsets(pos)
         edge = dist - 2.0 * c.robot_radius
@@ -317,11 +318,19 @@ class GateEscape(Task):
         )
         count = robot_sum(sensed.astype(np.float64), axis=-1)
         out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
-        readings = np.where(sensed, normalised_reading(edge, c.neighbour_range), 1.0)
-        np.maximum(readings, -1.0, out=readings)
-        arcs = bearing(dx, dy, cos_h[..., None], sin_h[..., None])
-        arcs = arc_index(arcs, c.n_robot_arcs)
-        out[..., 3 : 3 + c.n_robot_arcs] = arc_minimum(readings, arcs, c.n_robot_arcs)
+        pairs = np.flatnonzero(sensed)
+        rows = pairs // n
+        readings = np.maximum(
+            normalised_reading(edge.reshape(-1)[pairs], c.neighbour_range), -1.0
+        )
+        bearings = bearing(
+            dx.reshape(-1)[pairs],
+            dy.reshape(-1)[pairs],
+            cos_h.reshape(-1)[rows],
+            sin_h.reshape(-1)[rows],
+        )
+        arcs = sector_minimum(rows, bearings, readings, b * n, c.n_robot_arcs)
+        out[..., 3 : 3 + c.n_robot_arcs] = arcs.reshape(b, n, -1)
         out[..., 3 + c.n_robot_arcs :] = self._wall_rays(pos, cos_h, sin_h)
         return out
 

@@ -1,0 +1,262 @@
+"""run_batch, BatchSimulation and TrialStepper: results, observers, determinism."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sdbc_sim.engine import (
+    BatchSimulation,
+    EngineSettings,
+    TrialStepper,
+    controller_fitness,
+)
+from sdbc_sim.network import forward
+from sdbc_sim.physics import PhysicsSettings
+from sdbc_sim.task_state import TaskDescription, TaskState
+from sdbc_sim.tasks import make_task
+
+from sdbc_sim import run_batch
+
+CROWDED = {"arena_size": 60.0, "start_spacing": 6.0, "n_robots": 6, "max_steps": 150}
+"""A gate escape arena small enough that robots meet each other and the walls."""
+
+
+class Trajectories:
+    """Observer keeping the Agent centres, presence and the active flag of some
+    trials at every step."""
+
+    def __init__(self, trials: list[int]) -> None:
+        self.trials = trials
+        self.steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.closest = np.inf
+
+    def start(self, description: TaskDescription, n_trials: int) -> None:
+        self.n_trials = n_trials
+
+    def observe(self, state: TaskState) -> None:
+        agents = state.groups[0]
+        idx = self.trials
+        self.steps.append(
+            (agents.centres[idx].copy(), agents.present[idx].copy(), state.active[idx])
+        )
+        c = agents.centres[state.active]
+        gap = np.linalg.norm(c[:, :, None] - c[:, None], axis=-1)
+        gap[:, np.eye(c.shape[1], dtype=bool)] = np.inf
+        self.closest = min(self.closest, float(gap.min(initial=np.inf)))
+
+    def of(self, k: int) -> list[tuple[np.ndarray, ...]]:
+        """The steps of the k-th watched trial while it was active."""
+        return [(c[k], p[k]) for c, p, a in self.steps if a[k]]
+
+
+def same(a: list[tuple[np.ndarray, ...]], b: list[tuple[np.ndarray, ...]]) -> bool:
+    return len(a) == len(b) and all(
+        np.array_equal(x, y)
+        for u, v in zip(a, b, strict=True)
+        for x, y in zip(u, v, strict=True)
+    )
+
+
+@pytest.fixture(scope="module")
+def big_batch():
+    """2000 trials (200 genomes x 10 seeds) of a crowded gate escape, with the
+    trajectories of four of them."""
+    task = make_task("gate_escape", **CROWDED)
+    rng = np.random.default_rng(42)
+    genomes = rng.uniform(-1.0, 1.0, (200, task.genome_length))
+    seeds = rng.integers(0, 2**40, (200, 10))
+    picks = [(0, 0), (57, 3), (123, 9), (199, 9)]
+    watch = Trajectories([g * 10 + t for g, t in picks])
+    result = run_batch(task, genomes, seeds, [watch])
+    return task, genomes, seeds, picks, watch, result
+
+
+def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
+    task, genomes, seeds, picks, watch, result = big_batch
+    # The batch is only a test of independence if robots did touch.
+    assert watch.closest < 2 * task.config.robot_radius + 0.01
+    assert len(set(result.length.ravel().tolist())) > 1
+    for k, (g, t) in enumerate(picks):
+        alone = Trajectories([0])
+        r = run_batch(task, genomes[g : g + 1], seeds[g : g + 1, t : t + 1], [alone])
+        assert r.fitness[0, 0] == result.fitness[g, t]
+        assert np.array_equal(r.characterisation[0, 0], result.characterisation[g, t])
+        assert r.length[0, 0] == result.length[g, t]
+        assert same(alone.of(0), watch.of(k))
+
+
+def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
+    task, genomes, seeds, picks, _, result = big_batch
+    g, t = picks[1]
+    rng = np.random.default_rng(3)
+    others = rng.uniform(-1.0, 1.0, (30, task.genome_length))
+    mixed_g = np.vstack([others[:17], genomes[g : g + 1], others[17:]])
+    mixed_s = rng.integers(0, 2**40, (31, 3))
+    mixed_s[17, 2] = seeds[g, t]
+    settings = EngineSettings(PhysicsSettings(trials_per_space=8))
+    r = run_batch(task, mixed_g, mixed_s, settings=settings)
+    assert r.fitness[17, 2] == result.fitness[g, t]
+    assert np.array_equal(r.characterisation[17, 2], result.characterisation[g, t])
+    assert r.length[17, 2] == result.length[g, t]
+
+
+def test_another_process_gives_the_same_trial(big_batch) -> None:
+    task, genomes, seeds, picks, _, result = big_batch
+    g, t = picks[2]
+    np.save(Path(__file__).parent / ".engine_genome.npy", genomes[g])
+    script = (
+        "import numpy as np, sys\n"
+        "from sdbc_sim import run_batch\n"
+        "from sdbc_sim.tasks import make_task\n"
+        f"task = make_task('gate_escape', **{CROWDED!r})\n"
+        "g = np.load(sys.argv[1])[None]\n"
+        f"r = run_batch(task, g, np.array([[{int(seeds[g, t])}]]))\n"
+        "print(r.fitness[0, 0].hex(), r.length[0, 0],"
+        " *[v.hex() for v in r.characterisation[0, 0]])\n"
+    )
+    src = Path(__file__).resolve().parents[2] / "src" / "sdbc_sim"
+    try:
+        out = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                script,
+                str(Path(__file__).parent / ".engine_genome.npy"),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+            env={"PYTHONPATH": str(src), "PATH": ""},
+        ).stdout.split()
+    finally:
+        (Path(__file__).parent / ".engine_genome.npy").unlink()
+    assert float.fromhex(out[0]) == result.fitness[g, t]
+    assert int(out[1]) == result.length[g, t]
+    assert [float.fromhex(v) for v in out[2:]] == result.characterisation[g, t].tolist()
+
+
+def test_dropping_finished_trials_changes_nothing() -> None:
+    task = make_task("gate_escape", **CROWDED)
+    rng = np.random.default_rng(5)
+    genomes = rng.uniform(-1.0, 1.0, (12, task.genome_length))
+    seeds = rng.integers(0, 2**40, (12, 5))
+    results = [
+        run_batch(task, genomes, seeds, settings=EngineSettings(compact_fraction=f))
+        for f in (0.01, 1.0)
+    ]
+    assert len(set(results[0].length.ravel().tolist())) > 1
+    for name in ("fitness", "characterisation", "length"):
+        assert np.array_equal(getattr(results[0], name), getattr(results[1], name))
+
+
+def test_live_stepper_matches_the_batch() -> None:
+    task = make_task("gate_escape", **CROWDED)
+    rng = np.random.default_rng(9)
+    genome = rng.uniform(-1.0, 1.0, task.genome_length)
+    batch = Trajectories([0])
+    r = run_batch(task, genome[None], np.array([[77]]), [batch])
+    stepper = TrialStepper(task)
+    stepper.reset(77)
+    live = []
+    while not stepper.done:
+        stepper.step(forward(genome, task.network, stepper.sensors()))
+        agents = stepper.state().groups[0]
+        live.append((agents.centres[0].copy(), agents.present[0].copy()))
+    fitness, characterisation, length = stepper.result()
+    assert fitness == r.fitness[0, 0] and length == r.length[0, 0]
+    assert np.array_equal(characterisation, r.characterisation[0, 0])
+    assert same(live, batch.of(0))
+
+
+class Recorder:
+    def start(self, description: TaskDescription, n_trials: int) -> None:
+        self.description, self.n_trials = description, n_trials
+        self.steps: list[int] = []
+        self.active: list[int] = []
+
+    def observe(self, state: TaskState) -> None:
+        self.steps.append(state.step)
+        self.active.append(int(state.active.sum()))
+        for group in state.groups:
+            assert group.present.shape[0] in (1, self.n_trials)
+            assert group.attributes.shape[0] in (1, self.n_trials)
+
+
+def test_observers_see_every_step_of_the_whole_batch() -> None:
+    task = make_task("gate_escape", **CROWDED)
+    rng = np.random.default_rng(11)
+    genomes = rng.uniform(-1.0, 1.0, (20, task.genome_length))
+    seeds = rng.integers(0, 2**40, (20, 4))
+    rec = Recorder()
+    r = run_batch(task, genomes, seeds, [rec])
+    assert rec.description is task.description and rec.n_trials == 80
+    assert rec.steps == list(range(1, int(r.length.max()) + 1))
+    expected = [(r.length >= k).sum() for k in rec.steps]
+    assert rec.active == expected
+
+
+def test_controller_aggregates() -> None:
+    f = np.array([[0.5, 0.25], [0.0, 1.0]])
+    np.testing.assert_allclose(
+        controller_fitness(f), [1 / 3, 2 / (1e4 + 1)], rtol=1e-15
+    )
+    np.testing.assert_allclose(controller_fitness(f, "arithmetic"), [0.375, 0.5])
+    task = make_task("gate_escape", max_steps=20)
+    genomes = np.random.default_rng(0).uniform(-1, 1, (3, task.genome_length))
+    seeds = np.arange(6).reshape(3, 2)
+    h = run_batch(task, genomes, seeds)
+    a = run_batch(task, genomes, seeds, fitness_mean="arithmetic")
+    np.testing.assert_allclose(h.controller_fitness, controller_fitness(h.fitness))
+    np.testing.assert_allclose(a.controller_fitness, h.fitness.mean(axis=1))
+    np.testing.assert_allclose(
+        h.controller_characterisation, h.characterisation.mean(axis=1)
+    )
+    assert h.characterisation.shape == (3, 2, 4)
+    assert np.all((h.characterisation >= 0) & (h.characterisation <= 1))
+
+
+@pytest.mark.parametrize(
+    ("genomes", "seeds", "message"),
+    [
+        (np.zeros((2, 107)), np.zeros((2, 1), int), "length 107 .* needs 108"),
+        (np.full((2, 108), np.nan), np.zeros((2, 1), int), "NaN or infinite"),
+        (np.full((1, 108), np.inf), np.zeros((1, 1), int), "NaN or infinite"),
+        (np.zeros(108), np.zeros((1, 1), int), "expected a \\(G, W\\) array"),
+        (np.zeros((2, 108)), np.zeros((3, 1), int), "3 rows for 2 genomes"),
+        (np.zeros((2, 108)), np.full((2, 1), -1), "non-negative"),
+        (np.zeros((2, 108)), np.zeros((2, 1)), "expected integers"),
+        (np.zeros((2, 108)), np.zeros(2, int), "\\(G, T\\)"),
+    ],
+)
+def test_bad_input_is_named_before_anything_runs(genomes, seeds, message) -> None:
+    task = make_task("gate_escape")
+
+    def no_reset(rngs):
+        raise AssertionError("simulation started")
+
+    task.reset = no_reset  # type: ignore[method-assign]
+    with pytest.raises(ValueError, match=message):
+        run_batch(task, genomes, seeds)
+
+
+def test_unknown_fitness_mean_and_bad_outputs() -> None:
+    task = make_task("gate_escape")
+    with pytest.raises(ValueError, match="unknown fitness mean 'median'"):
+        run_batch(
+            task, np.zeros((1, 108)), np.zeros((1, 1), int), fitness_mean="median"
+        )
+    stepper = TrialStepper(task)
+    stepper.reset(0)
+    with pytest.raises(ValueError, match="outputs have shape"):
+        stepper.step(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="must lie in \\[0, 1\\]"):
+        stepper.step(np.full((4, 3), np.nan))
+    with pytest.raises(RuntimeError, match="has not ended"):
+        stepper.result()
+    sim = BatchSimulation(task, np.array([0]))
+    with pytest.raises(ValueError, match="no genomes; pass outputs"):
+        sim.step()

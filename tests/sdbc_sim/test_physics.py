@@ -1,0 +1,88 @@
+"""Trial slots in pymunk, and what the contact solver lets robots do."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from sdbc_sim.engine import BatchSimulation
+from sdbc_sim.physics import PhysicsSettings, SlotGrid
+from sdbc_sim.sensors import point_segment_distance
+from sdbc_sim.tasks import make_task
+
+
+def test_slots_share_one_float_exponent_and_never_overlap() -> None:
+    grid = SlotGrid.fit((-100.0, 0.0, 200.0, 200.0), margin=13.0, cell=8.0)
+    assert grid.spacing == 512.0 and grid.columns == 128
+    offsets = np.array([grid.offset(s) for s in range(grid.capacity)])
+    lows = offsets + [-100.0, 0.0]
+    highs = offsets + [200.0, 200.0]
+    assert np.all(np.frexp(lows)[1] == 17) and np.all(np.frexp(highs)[1] == 17)
+    assert np.all(np.mod(offsets, 8.0) == 0.0)
+    corners = offsets - grid.origin
+    assert np.all(lows - 13.0 >= corners) and np.all(highs + 13.0 <= corners + 512.0)
+
+
+def test_bad_physics_settings_are_named() -> None:
+    with pytest.raises(ValueError, match="hash_cell must be a power of two"):
+        PhysicsSettings(hash_cell=6.0)
+    with pytest.raises(ValueError, match="trials_per_space must be >= 1"):
+        PhysicsSettings(trials_per_space=0)
+    with pytest.raises(ValueError, match="dt must be positive"):
+        PhysicsSettings(dt=-1.0)
+    with pytest.raises(ValueError, match="too large for one slot"):
+        SlotGrid.fit((0.0, 0.0, 70000.0, 10.0), margin=1.0, cell=8.0)
+
+
+def test_random_controllers_never_sink_into_walls_or_each_other() -> None:
+    """8 robots in a 60 x 60 arena under random outputs for 1000 steps: no robot
+    overlaps a wall or another robot by more than 5% of its radius."""
+    task = make_task(
+        "gate_escape",
+        arena_size=60.0,
+        n_robots=8,
+        start_spacing=6.0,
+        max_steps=1000,
+        gate_closing_steps=1000,
+    )
+    r = task.config.robot_radius
+    sim = BatchSimulation(task, np.arange(40))
+    rng = np.random.default_rng(0)
+    worst_wall = worst_robot = -np.inf
+    touching = 0
+    while not sim.finished:
+        out = rng.uniform(0.0, 1.0, (sim.live.shape[0], 8, 3))
+        out[..., 2] *= 0.55  # stop rarely, so robots keep pushing
+        sim.step(out)
+        on = sim.bodies.enabled
+        pos = sim.bodies.position
+        wall = r - point_segment_distance(pos, task.walls).min(axis=-1)
+        worst_wall = max(worst_wall, float(np.max(wall[on], initial=-np.inf)))
+        gap = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1)
+        both = on[:, :, None] & on[:, None] & ~np.eye(8, dtype=bool)
+        sink = 2 * r - gap[both]
+        touching += int((sink > -0.01).sum())
+        worst_robot = max(worst_robot, float(np.max(sink, initial=-np.inf)))
+    assert touching > 1000  # they did push against each other
+    assert worst_wall <= 0.05 * r
+    assert worst_robot <= 0.05 * r
+
+
+def test_a_robot_driven_into_a_wall_slides_along_it(placed) -> None:
+    task = placed(
+        make_task("gate_escape"),
+        [[100.0, 190.0], [150.0, 20.0], [150.0, 60.0], [150.0, 100.0]],
+        [math.pi / 4, 0.0, 0.0, 0.0],
+    )
+    sim = BatchSimulation(task, np.array([0]))
+    out = np.zeros((1, 4, 3))
+    out[0, 0] = [1.0, 0.5, 0.0]
+    out[0, 1:, 2] = 1.0
+    for _ in range(60):
+        sim.step(out)
+    x, y = sim.bodies.position[0, 0]
+    # Heading 45 degrees into the top wall: it stops at y = 200 - r and keeps
+    # sliding right at cos 45 per step (friction 0).
+    assert y == pytest.approx(197.5, abs=0.05 * 2.5)
+    assert x > 100.0 + 50 * math.cos(math.pi / 4)
