@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
-from sdbc_sim.engine import TrialStepper, run_batch
+from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
 from sdbc_sim.task_state import TaskState
 from sdbc_sim.tasks import make_task
 from sdbc_sim.tasks.resource_sharing import ResourceSharing, ResourceSharingConfig
@@ -367,3 +367,29 @@ def test_a_trial_is_the_same_alone_in_a_batch_in_any_space_and_process(
         initial_energy=150.0,
         max_steps=150,
     )
+
+
+def test_robots_crowding_the_station_never_sink_into_each_other() -> None:
+    """Six robots of 40 trials steer for the station for 300 steps, robot i at
+    speed 1 - 0.1 i: they pile up on it and push; robots 0 to 3 die on it (drain
+    1.05 + 0.95 o0: at steps 250, 263, 277 and 292) and stay as obstacles. No
+    robot overlaps another by more than 5% of its radius."""
+    task = make_task("resource_sharing", n_robots=6, max_steps=300)
+    r, turn = task.config.robot_radius, task.config.max_turn
+    sim = BatchSimulation(task, np.arange(40))
+    worst = -np.inf
+    touching = 0
+    while not sim.finished:
+        bearing = sim.sensors()[..., 5] * np.pi
+        out = np.zeros((sim.live.shape[0], 6, 3))
+        out[..., 0] = 1.0 - 0.1 * np.arange(6)
+        out[..., 1] = 0.5 + np.clip(bearing, -turn, turn) / (2 * turn)
+        sim.step(out)
+        pos = sim.bodies.position
+        gap = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1)
+        sink = 2 * r - gap[:, ~np.eye(6, dtype=bool)]
+        touching += int((sink > -0.01).sum())
+        worst = max(worst, float(sink.max()))
+    assert touching > 10_000
+    assert worst <= 2 * 0.05 * r  # each of the two robots sinks at most 5%
+    assert np.all(np.count_nonzero(sim.trials.energy == 0.0, axis=1) == 4)
