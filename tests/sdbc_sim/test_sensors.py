@@ -1,0 +1,76 @@
+"""Sensor geometry against hand-computed values."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from sdbc_sim.sensors import (
+    arc_index,
+    arc_minimum,
+    bearing,
+    normalised_reading,
+    point_segment_distance,
+    ray_segment_distance,
+    robot_min,
+    robot_sum,
+    sector_minimum,
+    wrap_angle,
+)
+
+
+def test_bearing_is_the_angle_in_the_robots_frame() -> None:
+    h = np.array([0.0, math.pi / 2, math.pi])
+    dx, dy = np.zeros(3), np.array([1.0, 1.0, -1.0])
+    b = bearing(dx, dy, np.cos(h), np.sin(h))
+    np.testing.assert_allclose(b, [math.pi / 2, 0.0, math.pi / 2], atol=1e-12)
+    np.testing.assert_allclose(
+        wrap_angle(np.array([3 * math.pi / 2, -4.0])), [-math.pi / 2, 2 * math.pi - 4.0]
+    )
+
+
+def test_four_arcs_look_back_right_ahead_left() -> None:
+    b = np.array([math.pi, -math.pi, -math.pi / 2, 0.0, math.pi / 2, 0.7, -2.5, -2])
+    assert arc_index(b, 4).tolist() == [0, 0, 1, 2, 3, 2, 0, 1]
+
+
+def test_sector_minimum_sparse_equals_dense() -> None:
+    readings = np.array([[[1.0, 0.2, -0.5, 0.9]]])
+    bearings = np.array([[[0.0, 0.1, math.pi / 2, 0.2]]])
+    dense = arc_minimum(readings, arc_index(bearings, 4), 4)
+    np.testing.assert_array_equal(dense[0, 0], [1.0, 1.0, 0.2, -0.5])
+    sparse = sector_minimum(
+        np.zeros(3, int), bearings[0, 0, 1:], readings[0, 0, 1:], 1, 4
+    )
+    np.testing.assert_array_equal(sparse[0], dense[0, 0])
+
+
+def test_rays_and_segments() -> None:
+    segments = np.array([[[0.0, -1.0], [0.0, 1.0]], [[5.0, -1.0], [5.0, 1.0]]])
+    origins = np.array([[3.0, 0.0], [3.0, 0.0], [3.0, 0.0], [3.0, 5.0]])
+    s = math.sqrt(0.5)
+    directions = np.array([[-1.0, 0.0], [1.0, 0.0], [-s, s], [-1.0, 0.0]])
+    d = ray_segment_distance(origins, directions, 2.5, segments)
+    # Left: x = 0 at 3 is beyond 2.5; right: x = 5 at 2; diagonal: crosses x = 0
+    # at y = 3, off the segment; above: misses.
+    np.testing.assert_allclose(d, [np.inf, 2.0, np.inf, np.inf])
+    assert ray_segment_distance(origins[:1], directions[:1], 3.0, segments)[0] == 3.0
+    parallel = ray_segment_distance(
+        np.array([[0.0, -3.0]]), np.array([[0.0, 1.0]]), 9, segments
+    )
+    assert parallel[0] == np.inf
+    p = point_segment_distance(np.array([[3.0, 0.0], [0.0, 4.0]]), segments)
+    np.testing.assert_allclose(p, [[3.0, 2.0], [3.0, math.hypot(5.0, 3.0)]])
+
+
+def test_readings_and_fixed_order_reductions() -> None:
+    np.testing.assert_allclose(
+        normalised_reading(np.array([0.0, 12.5, 25.0, 40.0]), 25.0), [-1, 0, 1, 1]
+    )
+    a = np.array([[1e16, 1.0, -1e16, 1.0]])
+    # ((1e16 + 1) - 1e16) + 1 in that order, whatever numpy would do.
+    assert robot_sum(a)[0] == ((1e16 + 1.0) - 1e16) + 1.0
+    assert robot_min(np.array([[3.0, -2.0, 5.0]]), axis=1)[0] == -2.0
+    with pytest.raises(IndexError):
+        robot_sum(np.zeros((2, 0)))
