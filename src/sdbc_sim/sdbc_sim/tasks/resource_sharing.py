@@ -83,13 +83,12 @@ import numpy as np
 
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
-    arc_index,
-    arc_minimum,
     bearing,
     norm,
     normalised_reading,
     pairwise_offsets,
     robot_sum,
+    sector_minimum,
 )
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -367,13 +366,22 @@ class ResourceSharing(Task):
         k = c.n_robot_arcs
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
+        # Other robots, dead ones too (obstacles); only the few in range.
         dx, dy, dist = pairwise_offsets(pos)
         edge = dist - 2.0 * c.robot_radius
-        sensed = (edge <= c.robot_sensor_range) & self._not_self
-        readings = np.where(sensed, normalised_reading(edge, c.robot_sensor_range), 1.0)
-        np.maximum(readings, -1.0, out=readings)
-        arcs = arc_index(bearing(dx, dy, cos_h[..., None], sin_h[..., None]), k)
-        out[..., :k] = arc_minimum(readings, arcs, k)
+        pairs = np.flatnonzero((edge <= c.robot_sensor_range) & self._not_self)
+        rows = pairs // n
+        readings = np.maximum(
+            normalised_reading(edge.reshape(-1)[pairs], c.robot_sensor_range), -1.0
+        )
+        bearings = bearing(
+            dx.reshape(-1)[pairs],
+            dy.reshape(-1)[pairs],
+            cos_h.reshape(-1)[rows],
+            sin_h.reshape(-1)[rows],
+        )
+        arcs = sector_minimum(rows, bearings, readings, b * n, k)
+        out[..., :k] = arcs.reshape(b, n, k)
         sx = self.station_centre[0] - pos[..., 0]
         sy = self.station_centre[1] - pos[..., 1]
         out[..., k] = norm(sx, sy) * (2.0 / c.station_sensor_range) - 1.0
