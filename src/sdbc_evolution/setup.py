@@ -18,6 +18,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "recorder = sdbc_evolution.nodes.recorder_node:main",
+            "sdbc-graph = sdbc_evolution.launch:main",
         ],
     },
 )

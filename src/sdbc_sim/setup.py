@@ -18,6 +18,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "simulator_node = sdbc_sim.nodes.simulator_node:main",
+            "controller_node = sdbc_sim.nodes.controller_node:main",
         ],
     },
 )

@@ -1,0 +1,332 @@
+"""The live graph seen from outside: genomes in, trials and their SDBCs out.
+
+A :class:`GraphClient` lives on a node of its caller (the evolution node, a test).
+It sets a genome on every robot's controller through the controllers' parameter
+services (``robot_<i>/controller/set_parameters``), asks the simulator for a trial
+(``run_trial``), and characterises the trial from the ``task_state`` topic with the
+streaming SDBC extractor, message by message
+(:class:`sdbc_evolution.sdbc.messages.MessageSdbcExtractor`): nothing of the
+trajectory is kept. A trial counts only if every step's task state arrived, steps
+1 to its length in order; otherwise it is run again (trials are deterministic, so
+a repeat is the same trial), up to :data:`TRIAL_ATTEMPTS` times.
+
+The caller's node must be spun by an executor in another thread (the client
+waits on futures that the executor completes). The service clients share a
+reentrant callback group; the task state subscription has a mutually exclusive
+one, so that its messages are handled one at a time, in order of arrival.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.callback_groups import (
+    MutuallyExclusiveCallbackGroup,
+    ReentrantCallbackGroup,
+)
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sdbc_sim.nodes.interface import (
+    CONTROLLER_NODE,
+    RUN_TRIAL_SERVICE,
+    SIMULATOR_NODE,
+    TASK_STATE_QOS,
+    TASK_STATE_TOPIC,
+    parse_task_config,
+    robot_namespace,
+)
+from sdbc_sim.task import Task
+
+from sdbc_evolution.sdbc.messages import MessageSdbcExtractor
+from sdbc_msgs.msg import TaskState as TaskStateMsg
+from sdbc_msgs.srv import RunTrial
+
+TRIAL_ATTEMPTS = 2
+"""How often a trial is run before an incomplete task state stream is an error."""
+DISCOVERY_GRACE = 0.5
+"""Seconds to wait after this side has discovered the graph, for the other sides
+to discover this node (DDS discovery is not symmetric)."""
+POLL = 0.1
+"""Seconds between checks of the stop flag while waiting."""
+
+
+class GraphClientError(RuntimeError):
+    """The live graph could not do what was asked; the message says why."""
+
+
+class GenomeRejected(GraphClientError):
+    """A controller rejected a genome.
+
+    Attributes:
+        robot: The robot whose controller rejected it.
+        reason: The controller's reason.
+    """
+
+    def __init__(self, robot: int, reason: str) -> None:
+        super().__init__(f"robot {robot}'s controller rejected the genome: {reason}")
+        self.robot = robot
+        self.reason = reason
+
+
+class TrialFailed(GraphClientError):
+    """The simulator aborted a trial, or its task state did not arrive whole."""
+
+
+class Stopped(GraphClientError):
+    """The client was asked to stop while waiting."""
+
+
+@dataclass(frozen=True)
+class LiveTrial:
+    """One trial run through the live graph.
+
+    Attributes:
+        trial_id: Its id in the graph's messages.
+        seed: Its seed.
+        fitness: Its fitness, as the simulator computed it.
+        characterisation: (C,) its task-specific characterisation.
+        length: Steps it took.
+        sdbc: (D,) its raw SDBC vector, built from the task state topic.
+    """
+
+    trial_id: int
+    seed: int
+    fitness: float
+    characterisation: np.ndarray
+    length: int
+    sdbc: np.ndarray
+
+
+class _TrialStream:
+    """The task state messages of one trial, characterised as they arrive."""
+
+    def __init__(self, extractor: MessageSdbcExtractor) -> None:
+        self.extractor = extractor
+        self.vector: np.ndarray | None = None
+        self.steps = 0
+        self.error: str | None = None
+        self.done = threading.Event()
+
+    def add(self, msg: Any) -> None:
+        if self.error is not None or self.done.is_set():
+            return
+        if msg.step != self.steps + 1:
+            self.error = f"step {msg.step} arrived after step {self.steps}"
+            self.done.set()
+            return
+        self.steps = msg.step
+        try:
+            vector = self.extractor.add(msg)
+        except ValueError as error:
+            self.error = str(error)
+            self.done.set()
+            return
+        if vector is not None:
+            self.vector = vector
+            self.done.set()
+
+
+class GraphClient:
+    """Drives the live graph of ``task`` from ``node``.
+
+    Args:
+        node: The caller's node, spun by an executor in another thread.
+        task: The task the graph runs (its description builds the SDBC).
+        task_name: Its registry name.
+        task_config: Its setting overrides.
+        timeout: Seconds to wait for any one answer of the graph.
+        stop: When set, waiting stops with :class:`Stopped`.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        task: Task,
+        task_name: str,
+        task_config: dict[str, Any] | None = None,
+        timeout: float = 30.0,
+        stop: threading.Event | None = None,
+    ) -> None:
+        self.node = node
+        self.task = task
+        self.task_name = task_name
+        self.task_config = dict(task_config or {})
+        self.n_robots = task.layout.n_controlled
+        self.timeout = timeout
+        self.stop = stop or threading.Event()
+        self.lock = threading.RLock()
+        """Held while a genome is set and its trials run: one user at a time."""
+        group = ReentrantCallbackGroup()
+        self._run_trial = node.create_client(
+            RunTrial, RUN_TRIAL_SERVICE, callback_group=group
+        )
+        self._simulator_parameters = node.create_client(
+            GetParameters, f"{SIMULATOR_NODE}/get_parameters", callback_group=group
+        )
+        self._controller_parameters = [
+            node.create_client(
+                SetParameters,
+                f"{robot_namespace(i)}/{CONTROLLER_NODE}/set_parameters",
+                callback_group=group,
+            )
+            for i in range(self.n_robots)
+        ]
+        self._task_state = node.create_subscription(
+            TaskStateMsg,
+            TASK_STATE_TOPIC,
+            self._on_task_state,
+            TASK_STATE_QOS,
+            # One message at a time, in order, whatever the executor's threads.
+            callback_group=MutuallyExclusiveCallbackGroup(),
+        )
+        self._streams: dict[int, _TrialStream] = {}
+        self._streams_lock = threading.Lock()
+        self._next_trial_id = time.time_ns()
+
+    def _deadline_wait(self, ready: Any, what: str, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while not ready():
+            if self.stop.is_set():
+                raise Stopped(f"stopped while waiting for {what}")
+            if time.monotonic() > deadline:
+                raise GraphClientError(f"no {what} within {timeout:g} s")
+            time.sleep(POLL / 10)
+
+    def _call(self, client: Any, request: Any, what: str) -> Any:
+        future = client.call_async(request)
+        self._deadline_wait(future.done, what, self.timeout)
+        return future.result()
+
+    def wait_for_graph(self, timeout: float | None = None) -> None:
+        """Waits until the simulator, every controller and the task state topic
+        are there, and checks that the simulator runs this client's task.
+
+        Raises:
+            GraphClientError: Naming what is missing after ``timeout`` seconds, or
+                the task mismatch.
+        """
+        timeout = self.timeout if timeout is None else timeout
+        deadline = time.monotonic() + timeout
+
+        def missing() -> list[str]:
+            names = []
+            if not self._run_trial.service_is_ready():
+                names.append(f"the simulator's {self._run_trial.srv_name} service")
+            for i, client in enumerate(self._controller_parameters):
+                if not client.service_is_ready():
+                    names.append(f"robot {i}'s controller ({client.srv_name})")
+            if self._task_state.get_publisher_count() == 0:
+                names.append(f"a publisher of {self._task_state.topic_name}")
+            return names
+
+        while gaps := missing():
+            if self.stop.is_set():
+                raise Stopped("stopped while waiting for the graph")
+            if time.monotonic() > deadline:
+                raise GraphClientError(
+                    f"the live graph is incomplete after {timeout:g} s: no "
+                    + "; no ".join(gaps)
+                )
+            time.sleep(POLL)
+        time.sleep(DISCOVERY_GRACE)
+        self.check_task()
+
+    def check_task(self) -> None:
+        """Raises GraphClientError unless the simulator runs this client's task
+        with the same settings."""
+        self._deadline_wait(
+            self._simulator_parameters.service_is_ready,
+            "simulator parameter service",
+            self.timeout,
+        )
+        answer = self._call(
+            self._simulator_parameters,
+            GetParameters.Request(names=["task", "task_config"]),
+            "answer from the simulator's parameter service",
+        )
+        name, config = (v.string_value for v in answer.values)
+        if name != self.task_name or parse_task_config(config) != self.task_config:
+            raise GraphClientError(
+                f"the simulator runs task {name!r} with settings {config}, this "
+                f"client expects {self.task_name!r} with {self.task_config}"
+            )
+
+    def set_genome(self, genome: np.ndarray) -> None:
+        """Sets ``genome`` on every robot's controller (homogeneous team).
+
+        Raises:
+            GenomeRejected: Naming the robot and the controller's reason.
+            GraphClientError: A controller did not answer.
+        """
+        parameter = Parameter(
+            "genome", Parameter.Type.DOUBLE_ARRAY, np.asarray(genome, float).tolist()
+        ).to_parameter_msg()
+        futures = [
+            client.call_async(SetParameters.Request(parameters=[parameter]))
+            for client in self._controller_parameters
+        ]
+        for i, future in enumerate(futures):
+            self._deadline_wait(
+                future.done, f"answer from robot {i}'s controller", self.timeout
+            )
+            result = future.result().results[0]
+            if not result.successful:
+                raise GenomeRejected(i, result.reason)
+
+    def _on_task_state(self, msg: TaskStateMsg) -> None:
+        with self._streams_lock:
+            stream = self._streams.get(msg.trial_id)
+        if stream is not None:
+            stream.add(msg)
+
+    def run_trial(self, seed: int) -> LiveTrial:
+        """Runs one trial with the controllers' current genome.
+
+        Raises:
+            TrialFailed: The simulator aborted it (its message says why), or its
+                task state stream was incomplete in every attempt.
+        """
+        problem = ""
+        for _ in range(TRIAL_ATTEMPTS):
+            trial_id = self._next_trial_id
+            self._next_trial_id += 1
+            stream = _TrialStream(MessageSdbcExtractor(self.task.description))
+            with self._streams_lock:
+                self._streams[trial_id] = stream
+            try:
+                answer = self._call(
+                    self._run_trial,
+                    RunTrial.Request(task=self.task_name, seed=seed, trial_id=trial_id),
+                    f"answer from the simulator for trial seed {seed}",
+                )
+                if not answer.success:
+                    raise TrialFailed(answer.message)
+                self._deadline_wait(
+                    stream.done.is_set,
+                    f"last task state of trial {trial_id}",
+                    self.timeout,
+                )
+            finally:
+                with self._streams_lock:
+                    del self._streams[trial_id]
+            if stream.vector is not None and stream.steps == answer.length:
+                return LiveTrial(
+                    trial_id=trial_id,
+                    seed=seed,
+                    fitness=answer.fitness,
+                    characterisation=np.asarray(answer.characterisation),
+                    length=answer.length,
+                    sdbc=stream.vector,
+                )
+            problem = stream.error or (
+                f"{stream.steps} task state messages for {answer.length} steps"
+            )
+        raise TrialFailed(
+            f"trial seed {seed}: the task state stream was incomplete in "
+            f"{TRIAL_ATTEMPTS} attempts ({problem})"
+        )

@@ -1,0 +1,69 @@
+"""An evaluator that runs every trial through the live ROS 2 graph.
+
+It plugs into the experiment runner like the local and Dask evaluators
+(:class:`sdbc_evolution.evaluators.Evaluator`): for each genome it sets the genome
+on the controller nodes, runs the genome's trials one after another on the
+simulator node, and builds the SDBC vectors from the task state topic
+(:class:`~sdbc_evolution.nodes.graph_client.GraphClient`). A controller's values
+sum up exactly as in :func:`sdbc_evolution.evaluators.evaluate_chunk`: fitness by
+the engine's controller aggregate (harmonic mean by default), the task-specific
+characterisation and the SDBC as arithmetic means over trials. Live and batched
+evaluations of a genome then agree to round-off.
+
+It is slow by nature (one trial at a time, paced by lockstep): it is for
+inspection, recording and hardware in the loop, not for the paper's runs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sdbc_sim.engine import controller_fitness
+
+from sdbc_evolution.evaluators import Evaluation, Evaluator, TaskSpec
+from sdbc_evolution.nodes.graph_client import GraphClient
+
+
+class LiveEvaluator(Evaluator):
+    """Evaluates genomes through the live graph.
+
+    Args:
+        spec: The task (must be the one the graph runs).
+        client: The graph client.
+    """
+
+    def __init__(self, spec: TaskSpec, client: GraphClient) -> None:
+        self.spec = spec
+        self.client = client
+
+    @property
+    def workers(self) -> int:
+        # One graph, one trial at a time.
+        return 1
+
+    def _run(
+        self, genomes: np.ndarray, seeds: np.ndarray, bounds: list[tuple[int, int]]
+    ) -> list[Evaluation]:
+        return [self.evaluate_genomes(genomes[a:b], seeds[a:b]) for a, b in bounds]
+
+    def evaluate_genomes(self, genomes: np.ndarray, seeds: np.ndarray) -> Evaluation:
+        """Evaluates genome g in the trials ``seeds[g]``, one trial at a time."""
+        n, t = seeds.shape
+        fitness = np.empty((n, t))
+        characterisation = np.empty((n, t, self.client.task.characterisation_size))
+        sdbc: list[list[np.ndarray]] = []
+        for g in range(n):
+            with self.client.lock:
+                self.client.set_genome(genomes[g])
+                trials = [self.client.run_trial(int(s)) for s in seeds[g]]
+            fitness[g] = [trial.fitness for trial in trials]
+            characterisation[g] = [trial.characterisation for trial in trials]
+            sdbc.append([trial.sdbc for trial in trials])
+        return Evaluation(
+            fitness=controller_fitness(fitness, self.spec.fitness_mean),
+            trial_fitness=fitness,
+            characterisation=characterisation.mean(axis=1),
+            sdbc=np.asarray(sdbc).mean(axis=1),
+        )
+
+    def close(self) -> None:
+        """Nothing to release: the graph belongs to its launcher."""

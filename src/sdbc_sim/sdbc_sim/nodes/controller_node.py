@@ -1,0 +1,262 @@
+"""``controller_node``: one robot's neural controller in the live graph.
+
+The node ``robot_<i>/controller`` holds its genome as the double-array parameter
+``genome``, reads the robot's inputs on ``robot_<i>/sensors`` and answers every
+reading at once with the network's outputs on ``robot_<i>/command``, copying the
+reading's trial id, step and robot index (the simulator's lockstep matches on them).
+The outputs are those of :class:`sdbc_sim.network.TeamNetworks`, the engine's own
+network code, so a robot computes here exactly what it computes in a batch.
+
+A genome is checked when it is set, at start-up (``-p`` or ``--params-file``) or
+later (``ros2 param set``, the evolution node): it must have the task network's
+number of weights, W = (I + 1) H + (H + 1) O, all finite. A bad one is rejected with
+a reason naming the problem and the node keeps its previous genome; at start-up
+the node exits instead, before any work runs. Until a genome is set the node does
+not answer, and the simulator's timeout names the robot.
+
+Usage::
+
+    controller_node --ros-args -r __ns:=/robot_2 -p task:=gate_escape \\
+        --params-file genome.yaml
+    controller_node --robots 0 1 2 3 --ros-args --params-file graph_params.yaml
+
+With ``--robots`` several controllers (one node per robot, each in its robot's
+namespace) share one process and one executor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+)
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from sdbc_msgs.msg import RobotCommand, SensorReadings
+from sdbc_sim.network import NetworkShape, TeamNetworks
+from sdbc_sim.nodes.interface import (
+    COMMAND_TOPIC,
+    CONTROLLER_NODE,
+    LOCKSTEP_QOS,
+    SENSORS_TOPIC,
+    build_task,
+    robot_namespace,
+)
+
+DEFAULT_TASK = "gate_escape"
+"""Task of a node started without a ``task`` parameter."""
+
+
+def genome_problem(values: Sequence[float], shape: NetworkShape) -> str | None:
+    """Why ``values`` cannot be a genome of a network of ``shape``, or None.
+
+    The reason names the problem: the length against the network's
+    W = (I + 1) H + (H + 1) O weights, or the first non-finite values.
+    """
+    genome = np.asarray(values, dtype=np.float64)
+    if genome.ndim != 1 or genome.shape[0] != shape.genome_length:
+        return (
+            f"genome has {genome.size} values; the {shape.n_inputs}-"
+            f"{shape.n_hidden}-{shape.n_outputs} network needs "
+            f"{shape.genome_length} = ({shape.n_inputs} + 1) x {shape.n_hidden} + "
+            f"({shape.n_hidden} + 1) x {shape.n_outputs}"
+        )
+    bad = np.flatnonzero(~np.isfinite(genome))
+    if bad.size:
+        shown = ", ".join(f"[{i}] = {genome[i]}" for i in bad[:5])
+        more = f" and {bad.size - 5} more" if bad.size > 5 else ""
+        return f"genome has non-finite values: {shown}{more}"
+    return None
+
+
+class ControllerNode(Node):
+    """The controller of one robot.
+
+    Parameters (ROS):
+        task: Task name (read-only); fixes the network's layer sizes.
+        task_config: YAML mapping of task setting overrides (read-only).
+        genome: The network's weights (double array), checked when set.
+
+    Args:
+        robot: Index of the robot, used for its namespace ``robot_<i>`` (a
+            ``__ns`` remapping on the command line takes precedence).
+        **kwargs: Passed on to :class:`rclpy.node.Node`.
+
+    Raises:
+        ValueError: A bad task, task_config or start-up genome, naming it.
+    """
+
+    def __init__(self, robot: int = 0, **kwargs) -> None:
+        super().__init__(CONTROLLER_NODE, namespace=robot_namespace(robot), **kwargs)
+        task_name = self.declare_parameter(
+            "task",
+            DEFAULT_TASK,
+            ParameterDescriptor(
+                description="Task name; fixes the network's layer sizes",
+                read_only=True,
+            ),
+        ).value
+        task_config = self.declare_parameter(
+            "task_config",
+            "{}",
+            ParameterDescriptor(
+                description="YAML mapping of task setting overrides",
+                read_only=True,
+            ),
+        ).value
+        self.shape = build_task(task_name, task_config).network
+        self._networks: TeamNetworks | None = None
+        self._silent_warned = False
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._declaring = True
+        try:
+            self.declare_parameter(
+                "genome",
+                Parameter.Type.DOUBLE_ARRAY,
+                ParameterDescriptor(
+                    type=ParameterType.PARAMETER_DOUBLE_ARRAY,
+                    description=(
+                        f"Network weights: {self.shape.genome_length} finite values "
+                        "(hidden units' input weights and bias, then output units')"
+                    ),
+                ),
+            )
+        except (InvalidParameterTypeException, InvalidParameterValueException) as error:
+            raise ValueError(f"parameter genome: {error}") from None
+        finally:
+            self._declaring = False
+        self._publisher = self.create_publisher(
+            RobotCommand, COMMAND_TOPIC, LOCKSTEP_QOS
+        )
+        self.create_subscription(
+            SensorReadings, SENSORS_TOPIC, self._answer, LOCKSTEP_QOS
+        )
+
+    @property
+    def genome(self) -> np.ndarray | None:
+        """The genome in use, or None before one is set."""
+        value = self.get_parameter_or("genome", None)
+        if value is None or value.type_ != Parameter.Type.DOUBLE_ARRAY:
+            return None
+        return np.asarray(value.value, dtype=np.float64)
+
+    def _check_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name != "genome":
+                continue
+            if parameter.type_ == Parameter.Type.NOT_SET and self._declaring:
+                continue  # declared without a value: no genome yet
+            if parameter.type_ != Parameter.Type.DOUBLE_ARRAY:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"genome must be a double array, got {parameter.type_.name}",
+                )
+            problem = genome_problem(parameter.value, self.shape)
+            if problem is not None:
+                self.get_logger().warning(f"genome rejected: {problem}")
+                return SetParametersResult(successful=False, reason=problem)
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            if parameter.name == "genome" and parameter.type_ != Parameter.Type.NOT_SET:
+                genome = np.asarray(parameter.value, dtype=np.float64)[None]
+                self._networks = TeamNetworks(self.shape, genome, team_size=1)
+                self._silent_warned = False
+                self.get_logger().debug(f"genome set ({genome.shape[1]} weights)")
+
+    def _answer(self, readings: SensorReadings) -> None:
+        if self._networks is None:
+            if not self._silent_warned:
+                self.get_logger().warning(
+                    "sensor readings arrived but no genome is set: not answering"
+                )
+                self._silent_warned = True
+            return
+        x = np.frombuffer(readings.values, dtype=np.float64)
+        if x.shape[0] != self.shape.n_inputs:
+            self.get_logger().error(
+                f"trial {readings.trial_id} step {readings.step}: "
+                f"{x.shape[0]} sensor values, the network takes "
+                f"{self.shape.n_inputs}: not answering"
+            )
+            return
+        outputs = self._networks.forward(x.reshape(1, 1, -1))[0, 0]
+        command = RobotCommand(
+            outputs=outputs.tolist(),
+            trial_id=readings.trial_id,
+            step=readings.step,
+            robot=readings.robot,
+        )
+        command.header.stamp = self.get_clock().now().to_msg()
+        self._publisher.publish(command)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="controller_node",
+        description=(
+            "Neural controller(s) of robots in the live sdbc graph. ROS arguments "
+            "follow --ros-args (e.g. -p task:=gate_escape --params-file F)."
+        ),
+    )
+    parser.add_argument(
+        "--robots",
+        type=int,
+        nargs="+",
+        default=[0],
+        metavar="I",
+        help="robot indices served by this process, one node each (default: 0)",
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv if argv is None else argv)
+    try:
+        plain = rclpy.utilities.remove_ros_args(argv)[1:]
+    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
+        print(f"controller_node: error: {error}", file=sys.stderr)
+        return 2
+    args = build_parser().parse_args(plain)
+    if len(set(args.robots)) != len(args.robots) or min(args.robots) < 0:
+        print(
+            f"controller_node: error: --robots must be distinct non-negative "
+            f"indices, got {args.robots}",
+            file=sys.stderr,
+        )
+        return 2
+    rclpy.init(args=argv)
+    nodes: list[ControllerNode] = []
+    executor = SingleThreadedExecutor()
+    try:
+        for robot in args.robots:
+            node = ControllerNode(robot)
+            nodes.append(node)
+            executor.add_node(node)
+        executor.spin()
+    except ValueError as error:
+        print(f"controller_node: error: {error}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

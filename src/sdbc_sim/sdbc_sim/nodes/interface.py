@@ -1,0 +1,147 @@
+"""The live graph's interface: node, topic and service names, QoS, and the task
+parameters that every node of a graph shares.
+
+Names are relative, so a whole graph can be pushed into a namespace with
+``--ros-args -r __ns:=/team_a``. Robot i's topics live in the namespace
+``robot_<i>``: the simulator publishes ``robot_<i>/sensors`` and subscribes to
+``robot_<i>/command``; robot i's controller node is ``robot_<i>/controller``.
+
+QoS, chosen on purpose:
+
+- Lockstep topics (sensors, commands) are reliable (a lost message would stall
+  the trial until the timeout) and transient-local with a history of one: at most
+  one message per topic is ever in flight in lockstep, and a reader that matches
+  a writer after it wrote still gets that message, so the first step of a trial
+  cannot be lost to discovery. Stale messages are told apart by trial id and step.
+- The task state is reliable with a history of :data:`TASK_STATE_DEPTH` messages,
+  a whole default-length trial, so that a subscriber building SDBCs never misses
+  a step while it catches up; a missed step is detected downstream (the stream
+  extractor demands consecutive steps), never silently averaged over.
+- Markers and statistics are for people watching: reliable, shallow.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import yaml
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+from sdbc_sim.task import Task
+from sdbc_sim.tasks import make_task
+
+SIMULATOR_NODE = "simulator"
+"""Name of the simulator node."""
+CONTROLLER_NODE = "controller"
+"""Name of a controller node, inside its robot's namespace."""
+EVOLUTION_NODE = "evolution"
+"""Name of the evolution node."""
+RECORDER_NODE = "recorder"
+"""Name of the recorder node."""
+
+SENSORS_TOPIC = "sensors"
+"""sdbc_msgs/SensorReadings, one robot's inputs, inside the robot's namespace."""
+COMMAND_TOPIC = "command"
+"""sdbc_msgs/RobotCommand, one robot's outputs, inside the robot's namespace."""
+TASK_STATE_TOPIC = "task_state"
+"""sdbc_msgs/TaskState of the running trial, every step."""
+MARKERS_TOPIC = "markers"
+"""visualization_msgs/MarkerArray of the running trial, for RViz or Foxglove."""
+RUN_TRIAL_SERVICE = "run_trial"
+"""sdbc_msgs/srv/RunTrial, offered by the simulator."""
+GENERATION_STATS_TOPIC = "generation_stats"
+"""sdbc_msgs/GenerationStats, one message per generation."""
+BEST_GENOME_TOPIC = "best_genome"
+"""std_msgs/Float64MultiArray, the best genome of the latest generation."""
+REPLAY_BEST_SERVICE = "replay_best"
+"""std_srvs/Trigger, offered by the evolution node: run the current best live."""
+
+TASK_STATE_DEPTH = 1000
+"""History of the task state topic: the longest default trial (gate escape)."""
+
+LOCKSTEP_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""Sensors and commands: reliable, transient-local, one message deep."""
+TASK_STATE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=TASK_STATE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Task state: reliable, a trial deep."""
+DISPLAY_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Markers and generation statistics: reliable, shallow."""
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""The best genome: the latest value, also for subscribers that join later."""
+
+
+def robot_namespace(robot: int) -> str:
+    """``robot_<i>``: the namespace of robot ``robot``'s topics and controller."""
+    if robot < 0:
+        raise ValueError(f"robot index must be non-negative, got {robot}")
+    return f"robot_{robot}"
+
+
+def robot_topic(robot: int, topic: str) -> str:
+    """``robot_<i>/<topic>``, relative to the simulator's namespace."""
+    return f"{robot_namespace(robot)}/{topic}"
+
+
+def parse_task_config(text: str) -> dict[str, Any]:
+    """The task setting overrides held by a ``task_config`` parameter.
+
+    Args:
+        text: A YAML (or JSON) mapping of task settings, e.g. ``{max_steps: 300}``;
+            empty means the task's defaults.
+
+    Raises:
+        ValueError: If the text is not YAML or not a mapping with string keys.
+    """
+    try:
+        data = yaml.safe_load(text) if text.strip() else {}
+    except yaml.YAMLError as error:
+        raise ValueError(f"task_config: not valid YAML ({error})") from None
+    if data is None:
+        return {}
+    if not isinstance(data, Mapping) or not all(isinstance(k, str) for k in data):
+        raise ValueError(
+            f"task_config: expected a mapping of task settings such as "
+            f"'{{max_steps: 300}}', got {text!r}"
+        )
+    return dict(data)
+
+
+def format_task_config(overrides: Mapping[str, Any]) -> str:
+    """The ``task_config`` parameter text for ``overrides`` (inverse of
+    :func:`parse_task_config`)."""
+    return yaml.safe_dump(dict(overrides), default_flow_style=True).strip()
+
+
+def build_task(name: str, task_config: str) -> Task:
+    """The task that the ``task`` and ``task_config`` parameters name.
+
+    Raises:
+        ValueError: Unknown task, malformed ``task_config``, unknown setting or
+            bad value, each named.
+    """
+    return make_task(name, **parse_task_config(task_config))

@@ -1,0 +1,294 @@
+"""``simulator_node``: runs trials of a task, one at a time, in lockstep with the
+robots' controller nodes.
+
+A trial starts on a call to the ``run_trial`` service (sdbc_msgs/srv/RunTrial:
+task, seed, trial id). The node draws the initial conditions from the seed with the
+engine's own one-trial stepper (:class:`sdbc_sim.engine.TrialStepper`, the same code
+as ``run_batch``), then, at every step k = 1, 2, ...:
+
+1. publishes each robot's sensor readings on ``robot_<i>/sensors`` and waits for
+   every robot's command for step k on ``robot_<i>/command``
+   (:mod:`sdbc_sim.nodes.lockstep`); a robot silent for ``command_timeout``
+   seconds aborts the trial with an error naming it;
+2. steps the trial with those outputs;
+3. publishes the task state (``task_state``, sdbc_msgs/TaskState) and, every
+   ``marker_period`` steps, markers (``markers``, visualization_msgs/MarkerArray).
+
+The answer carries the trial's fitness, task-specific characterisation and length,
+or ``success = false`` and a message saying why the trial was aborted; the node then
+serves the next trial as usual. Given the same genome on the controllers and the
+same seed, a live trial equals the batched engine's to the bit: the engine's
+stepping and network code run on both sides, and doubles cross DDS unchanged.
+
+Usage::
+
+    simulator_node --ros-args -p task:=gate_escape -p command_timeout:=2.0
+    simulator_node --ros-args --params-file configs/ros/gate_escape.yaml
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+)
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from sdbc_evolution.sdbc.messages import task_state_to_msg
+from visualization_msgs.msg import MarkerArray
+
+from sdbc_msgs.msg import TaskState as TaskStateMsg
+from sdbc_msgs.srv import RunTrial
+from sdbc_sim.engine import TrialStepper
+from sdbc_sim.nodes.interface import (
+    DISPLAY_QOS,
+    MARKERS_TOPIC,
+    RUN_TRIAL_SERVICE,
+    SIMULATOR_NODE,
+    TASK_STATE_QOS,
+    TASK_STATE_TOPIC,
+    build_task,
+)
+from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
+from sdbc_sim.nodes.markers import markers_from_task_state
+
+DEFAULT_TASK = "gate_escape"
+"""Task of a node started without a ``task`` parameter."""
+DEFAULT_COMMAND_TIMEOUT = 2.0
+"""Seconds to wait for every robot's command at a step."""
+DEFAULT_DISCOVERY_TIMEOUT = 10.0
+"""Seconds to wait, at a trial's start, for every robot's controller to connect."""
+DEFAULT_MARKER_PERIOD = 10
+"""Markers are published every this many steps (0: never)."""
+MAX_TIMEOUT = 3600.0
+"""Largest timeout a parameter accepts, seconds."""
+
+
+class TrialAborted(RuntimeError):
+    """A trial could not run to its end; the message says why."""
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    """The result of one live trial.
+
+    Attributes:
+        trial_id: The trial's id in its messages.
+        fitness: The trial's fitness.
+        characterisation: (C,) its task-specific characterisation, each in [0, 1].
+        length: Steps it took.
+    """
+
+    trial_id: int
+    fitness: float
+    characterisation: np.ndarray
+    length: int
+
+
+class SimulatorNode(Node):
+    """Runs trials of one task in lockstep with the controller nodes.
+
+    Parameters (ROS):
+        task: Task name (read-only).
+        task_config: YAML mapping of task setting overrides (read-only).
+        command_timeout: Seconds to wait for every robot's command at a step.
+        discovery_timeout: Seconds to wait at a trial's start for every robot's
+            controller to connect.
+        marker_period: Publish markers every this many steps; 0 for never.
+
+    Args:
+        **kwargs: Passed on to :class:`rclpy.node.Node`.
+
+    Raises:
+        ValueError: A bad task or task_config, naming it.
+    """
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(SIMULATOR_NODE, **kwargs)
+        task_name = self.declare_parameter(
+            "task",
+            DEFAULT_TASK,
+            ParameterDescriptor(description="Task name", read_only=True),
+        ).value
+        task_config = self.declare_parameter(
+            "task_config",
+            "{}",
+            ParameterDescriptor(
+                description="YAML mapping of task setting overrides", read_only=True
+            ),
+        ).value
+        for name, default, what in (
+            ("command_timeout", DEFAULT_COMMAND_TIMEOUT, "every robot's command"),
+            ("discovery_timeout", DEFAULT_DISCOVERY_TIMEOUT, "every controller"),
+        ):
+            self.declare_parameter(
+                name,
+                default,
+                ParameterDescriptor(
+                    description=f"Seconds to wait for {what}",
+                    floating_point_range=[
+                        FloatingPointRange(from_value=1e-3, to_value=MAX_TIMEOUT)
+                    ],
+                ),
+            )
+        self.declare_parameter(
+            "marker_period",
+            DEFAULT_MARKER_PERIOD,
+            ParameterDescriptor(
+                description="Publish markers every this many steps (0: never)",
+                integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1)],
+            ),
+        )
+        self.task = build_task(task_name, task_config)
+        self.characterisation_names = list(
+            getattr(self.task, "characterisation_names", ())
+        )
+        self._stepper = TrialStepper(self.task)
+        trial_group = MutuallyExclusiveCallbackGroup()
+        self.lockstep = Lockstep(
+            self,
+            self.task.layout.n_controlled,
+            self.task.network.n_outputs,
+            trial_group,
+        )
+        self._task_state = self.create_publisher(
+            TaskStateMsg, TASK_STATE_TOPIC, TASK_STATE_QOS
+        )
+        self._markers = self.create_publisher(MarkerArray, MARKERS_TOPIC, DISPLAY_QOS)
+        self.create_service(
+            RunTrial, RUN_TRIAL_SERVICE, self._serve, callback_group=trial_group
+        )
+        # Automatic trial ids start from the clock, so a restarted simulator
+        # never reuses the ids of commands still held by transient-local topics.
+        self._next_trial_id = time.time_ns()
+        self.get_logger().info(
+            f"task {self.task.name}: {self.task.layout.n_controlled} robots, "
+            f"{self.task.network.n_inputs} inputs, {self.task.network.n_outputs} "
+            "outputs per robot"
+        )
+
+    def _parameter(self, name: str) -> float:
+        return self.get_parameter(name).value
+
+    def run_trial(self, seed: int, trial_id: int = 0, task: str = "") -> TrialOutcome:
+        """Runs one trial in lockstep with the controllers.
+
+        Args:
+            seed: Seed of the trial's initial conditions (non-negative).
+            trial_id: Id of the trial in its messages; 0 picks a fresh one.
+            task: The task the caller expects; empty for the node's own.
+
+        Raises:
+            TrialAborted: A different task was asked for, the seed is negative, a
+                controller is missing or silent, or a command is malformed.
+        """
+        if task and task != self.task.name:
+            raise TrialAborted(
+                f"this simulator runs task {self.task.name!r}, not {task!r}"
+            )
+        if seed < 0:
+            raise TrialAborted(f"seed must be non-negative, got {seed}")
+        if trial_id == 0:
+            trial_id = self._next_trial_id
+            self._next_trial_id += 1
+        lockstep, stepper = self.lockstep, self._stepper
+        try:
+            lockstep.wait_for_controllers(self._parameter("discovery_timeout"))
+            lockstep.drain()
+            stepper.reset(seed)
+            marker_period = int(self._parameter("marker_period"))
+            while not stepper.done:
+                step = stepper.step_count + 1
+                outputs = lockstep.exchange(
+                    trial_id,
+                    step,
+                    stepper.sensors(),
+                    self._parameter("command_timeout"),
+                )
+                stepper.step(outputs)
+                self._publish_state(trial_id, step, marker_period)
+        except LockstepError as error:
+            raise TrialAborted(str(error)) from None
+        fitness, characterisation, length = stepper.result()
+        return TrialOutcome(trial_id, fitness, characterisation, length)
+
+    def _publish_state(self, trial_id: int, step: int, marker_period: int) -> None:
+        stepper = self._stepper
+        done = stepper.done
+        msg = task_state_to_msg(
+            stepper.state(), self.task.description, 0, trial_id, self.task.name, done
+        )
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._task_state.publish(msg)
+        if marker_period and (step % marker_period == 0 or step == 1 or done):
+            self._markers.publish(markers_from_task_state(msg))
+
+    def _serve(
+        self, request: RunTrial.Request, response: RunTrial.Response
+    ) -> RunTrial.Response:
+        try:
+            outcome = self.run_trial(request.seed, request.trial_id, request.task)
+        except TrialAborted as error:
+            self.get_logger().error(str(error))
+            response.success = False
+            response.message = str(error)
+            return response
+        response.success = True
+        response.message = f"trial {outcome.trial_id}: {outcome.length} steps"
+        response.fitness = outcome.fitness
+        response.characterisation = outcome.characterisation.tolist()
+        response.characterisation_names = self.characterisation_names
+        response.length = outcome.length
+        return response
+
+    def destroy_node(self) -> None:
+        self.lockstep.destroy()
+        super().destroy_node()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv if argv is None else argv)
+    try:
+        unknown = rclpy.utilities.remove_ros_args(argv)[1:]
+    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
+        print(f"simulator_node: error: {error}", file=sys.stderr)
+        return 2
+    if unknown:
+        print(
+            f"simulator_node: error: unknown arguments {unknown}; ROS arguments go "
+            "after --ros-args",
+            file=sys.stderr,
+        )
+        return 2
+    rclpy.init(args=argv)
+    node: SimulatorNode | None = None
+    # Two threads: parameter and graph services stay responsive while a trial runs.
+    executor = MultiThreadedExecutor(num_threads=2)
+    try:
+        node = SimulatorNode()
+        executor.add_node(node)
+        executor.spin()
+    except ValueError as error:
+        print(f"simulator_node: error: {error}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
