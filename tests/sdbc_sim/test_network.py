@@ -36,10 +36,10 @@ def test_a_team_computes_the_same_alone_and_in_a_batch() -> None:
     rng = np.random.default_rng(0)
     genomes = rng.uniform(-1, 1, (50, shape.genome_length))
     x = rng.uniform(-1, 1, (50, 4, 11))
-    batch = TeamNetworks(shape, genomes, 4).forward(x)
+    batch = TeamNetworks(shape, genomes).forward(x)
     for b in (0, 17, 49):
         assert np.array_equal(forward(genomes[b], shape, x[b]), batch[b])
-    nets = TeamNetworks(shape, genomes, 4)
+    nets = TeamNetworks(shape, genomes)
     nets.take(np.array([17, 3]))
     assert np.array_equal(nets.forward(x[[17, 3]]), batch[[17, 3]])
     assert np.all((batch > 0) & (batch < 1))

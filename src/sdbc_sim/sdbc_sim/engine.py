@@ -104,7 +104,7 @@ class BatchSimulation:
             g = check_genomes(genomes, task.network)
             if g.shape[0] != n:
                 raise ValueError(f"genomes: {g.shape[0]} genomes for {n} trials")
-            self._networks = TeamNetworks(task.network, g, self._n_ctrl)
+            self._networks = TeamNetworks(task.network, g)
         rngs = [np.random.default_rng(int(s)) for s in seeds]
         self.trials, position, angle = task.reset(rngs)
         if position.shape != (n, self._n_bodies, 2) or angle.shape != (

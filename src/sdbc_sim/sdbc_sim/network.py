@@ -90,69 +90,58 @@ def sigmoid(a: np.ndarray) -> np.ndarray:
 class TeamNetworks:
     """The networks of a batch of teams: every robot of trial b runs genome b.
 
-    Weights are copied per robot and stored source-unit-major with the robots
-    innermost, (inputs, units, robots): a layer is then a short fixed sequence of
-    multiply-adds over long contiguous rows, whatever the layer sizes.
+    Weights are stored once per trial, source-unit-major with the trials
+    innermost, (inputs, units, B); the robots' values are (units, N, B). A layer
+    is then a short fixed sequence of multiply-adds over long contiguous rows,
+    each weight row read once for the N robots of its trials.
 
     Args:
         shape: The layer sizes.
         genomes: (B, W) float64, the genome of each trial; already checked.
-        team_size: N, robots per trial.
     """
 
-    def __init__(
-        self, shape: NetworkShape, genomes: np.ndarray, team_size: int
-    ) -> None:
+    def __init__(self, shape: NetworkShape, genomes: np.ndarray) -> None:
         self.shape = shape
-        self.team_size = team_size
         n_in, n_hid, n_out = shape.n_inputs, shape.n_hidden, shape.n_outputs
         b = genomes.shape[0]
         split = (n_in + 1) * n_hid
         hidden = genomes[:, :split].reshape(b, n_hid, n_in + 1)
         output = genomes[:, split:].reshape(b, n_out, n_hid + 1)
-        self.w_hidden = _per_robot(hidden[:, :, :n_in].transpose(2, 1, 0), team_size)
-        self.b_hidden = _per_robot(hidden[:, :, n_in].T, team_size)
-        self.w_output = _per_robot(output[:, :, :n_hid].transpose(2, 1, 0), team_size)
-        self.b_output = _per_robot(output[:, :, n_hid].T, team_size)
+        self.w_hidden = np.ascontiguousarray(hidden[:, :, :n_in].transpose(2, 1, 0))
+        self.b_hidden = np.ascontiguousarray(hidden[:, :, n_in].T)
+        self.w_output = np.ascontiguousarray(output[:, :, :n_hid].transpose(2, 1, 0))
+        self.b_output = np.ascontiguousarray(output[:, :, n_hid].T)
 
     def take(self, trials: np.ndarray) -> None:
         """Keeps only ``trials`` (index array), in that order."""
-        n = self.team_size
-        robots = (trials[:, None] * n + np.arange(n)).ravel()
-        self.w_hidden = np.ascontiguousarray(self.w_hidden[..., robots])
-        self.b_hidden = np.ascontiguousarray(self.b_hidden[..., robots])
-        self.w_output = np.ascontiguousarray(self.w_output[..., robots])
-        self.b_output = np.ascontiguousarray(self.b_output[..., robots])
+        self.w_hidden = np.ascontiguousarray(self.w_hidden[..., trials])
+        self.b_hidden = np.ascontiguousarray(self.b_hidden[..., trials])
+        self.w_output = np.ascontiguousarray(self.w_output[..., trials])
+        self.b_output = np.ascontiguousarray(self.b_output[..., trials])
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """Outputs (B, N, O) in [0, 1] for inputs ``x`` (B, N, I)."""
-        b, n, n_in = x.shape
-        xt = np.ascontiguousarray(x.reshape(b * n, n_in).T)
+        xt = np.ascontiguousarray(x.transpose(2, 1, 0))
         h = _layer(xt, self.w_hidden, self.b_hidden)
         o = _layer(h, self.w_output, self.b_output)
-        return o.T.reshape(b, n, -1)
-
-
-def _per_robot(a: np.ndarray, team_size: int) -> np.ndarray:
-    """(..., B) per-trial values as a contiguous (..., B N) per-robot array."""
-    return np.ascontiguousarray(np.repeat(a, team_size, axis=-1))
+        return o.transpose(2, 1, 0)
 
 
 def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
     """sigma(b + sum_i w[i] x[i]), summed in index order.
 
     Args:
-        x: (I, R) source unit values per robot.
-        w: (I, U, R) weights.
-        b: (U, R) biases.
+        x: (I, N, B) source unit values per robot.
+        w: (I, U, B) weights per trial.
+        b: (U, B) biases per trial.
 
     Returns:
-        (U, R) unit values.
+        (U, N, B) unit values.
     """
-    a = b.copy()
+    a = np.repeat(b[:, None, :], x.shape[1], axis=1)
     tmp = np.empty_like(a)
     for i in range(w.shape[0]):
-        np.multiply(w[i], x[i], out=tmp)
+        np.multiply(w[i][:, None, :], x[i][None], out=tmp)
         a += tmp
     return sigmoid(a)
 
@@ -163,4 +152,4 @@ def forward(genome: np.ndarray, shape: NetworkShape, x: np.ndarray) -> np.ndarra
     live matches the batch bit for bit."""
     g = check_genomes(np.asarray(genome, dtype=np.float64)[None, :], shape)
     x = np.asarray(x, dtype=np.float64)
-    return TeamNetworks(shape, g, x.shape[0]).forward(x[None])[0]
+    return TeamNetworks(shape, g).forward(x[None])[0]
