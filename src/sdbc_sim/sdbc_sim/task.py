@@ -34,7 +34,9 @@ Then each step of a batch runs, in this order:
    turns by ``turn`` radians and moves ``speed`` units along its new heading; the
    engine turns it at once and drives it there with F = m (v* - v) / dt (the
    move happens during the next physics step);
-4. the physics step; ``bodies`` then holds the new state;
+4. the physics step, after which bodies left overlapping a wall or each other by
+   more than ``overlap_tolerance`` are projected apart; ``bodies`` then holds the
+   new state;
 5. ``update(trials, bodies, step)`` applies the rules and accumulates what the
    fitness and characterisation need, and returns which trials end at this step
    (the engine ends every trial at ``max_steps`` by itself). It may switch bodies
