@@ -100,20 +100,11 @@ def standalone_floor_rate(
 ) -> float:
     """Robot-steps per second of fresh copies of the Spaces with bulk transfer
     only, every body pushed at ``speed`` along its heading."""
-    layout = task.layout
     _, position, angle = task.reset(
         [np.random.default_rng(int(s)) for s in seeds.ravel()]
     )
-    spaces = TrialSpaces(
-        np.asarray(layout.radii),
-        layout.mass,
-        np.asarray(task.walls, dtype=np.float64).reshape(-1, 2, 2),
-        task.extent,
-        position,
-        angle,
-        settings,
-    )
-    rows = np.empty((position.shape[0] * layout.n_bodies, READ_WIDTH))
+    spaces = TrialSpaces.of_task(task, position, angle, settings)
+    rows = np.empty((position.shape[0] * task.layout.n_bodies, READ_WIDTH))
     drive = np.zeros((rows.shape[0], WRITE_WIDTH))
     t0 = time.perf_counter()
     for _ in range(steps):

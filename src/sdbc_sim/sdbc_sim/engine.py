@@ -115,15 +115,7 @@ class BatchSimulation:
                 f"{task.name}: reset gave positions {position.shape} and angles "
                 f"{angle.shape} for {n} trials of {self._n_bodies} bodies"
             )
-        self.spaces = TrialSpaces(
-            np.asarray(layout.radii),
-            layout.mass,
-            np.asarray(task.walls, dtype=np.float64).reshape(-1, 2, 2),
-            task.extent,
-            position,
-            angle,
-            self.settings.physics,
-        )
+        self.spaces = TrialSpaces.of_task(task, position, angle, self.settings.physics)
         self._rows = np.empty((n * self._n_bodies, READ_WIDTH))
         self._turn_rate = np.zeros((n, self._n_bodies))
         self.spaces.read(self._rows)

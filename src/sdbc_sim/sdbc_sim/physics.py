@@ -41,6 +41,7 @@ import pymunk
 import pymunk.batch as pb
 
 from sdbc_sim.sensors import norm, robot_sum, segment_offsets
+from sdbc_sim.task import Task
 
 _READ = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
 _WRITE = pb.BodyFields.ANGLE | pb.BodyFields.ANGULAR_VELOCITY | pb.BodyFields.FORCE
@@ -394,6 +395,27 @@ class TrialSpaces:
         self._offsets = np.repeat(offsets, n_bodies, axis=0)
         self._masses = np.full(n_trials * n_bodies, mass)
         self._index_spaces()
+
+    @classmethod
+    def of_task(
+        cls,
+        task: Task,
+        position: np.ndarray,
+        angle: np.ndarray,
+        settings: PhysicsSettings,
+    ) -> TrialSpaces:
+        """The Spaces of a batch of ``task``'s trials starting from ``position``
+        (B, R, 2) and ``angle`` (B, R)."""
+        layout = task.layout
+        return cls(
+            np.asarray(layout.radii),
+            layout.mass,
+            np.asarray(task.walls, dtype=np.float64).reshape(-1, 2, 2),
+            task.extent,
+            position,
+            angle,
+            settings,
+        )
 
     def _index_spaces(self) -> None:
         """Row ranges of each Space in the engine's (live) rows."""
