@@ -18,6 +18,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "evolution_node = sdbc_evolution.nodes.evolution_node:main",
             "recorder = sdbc_evolution.nodes.recorder_node:main",
             "sdbc-graph = sdbc_evolution.launch:main",
         ],

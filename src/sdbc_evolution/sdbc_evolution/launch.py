@@ -562,6 +562,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"graph file {args.graph}: --trial needs a genome for the controllers "
                 "('/**/controller: {ros__parameters: {genome: [...]}}')"
             )
+        if args.record is not None and args.record.exists():
+            raise GraphError(f"--record: {args.record} exists already; not overwriting")
         if args.trial and any(seed < 0 for seed in args.trial):
             raise GraphError(f"--trial: seeds must be non-negative, got {args.trial}")
         with tempfile.TemporaryDirectory(prefix="sdbc-graph-") as tmp:

@@ -4,8 +4,8 @@ The node ``robot_<i>/controller`` holds its genome as the double-array parameter
 ``genome``, reads the robot's inputs on ``robot_<i>/sensors`` and answers every
 reading at once with the network's outputs on ``robot_<i>/command``, copying the
 reading's trial id, step and robot index (the simulator's lockstep matches on them).
-The outputs are those of :class:`sdbc_sim.network.TeamNetworks`, the engine's own
-network code, so a robot computes here exactly what it computes in a batch.
+The outputs are those of :func:`sdbc_sim.network.forward`, the engine's own
+network arithmetic, so a robot computes here exactly what it computes in a batch.
 
 A genome is checked when it is set, at start-up (``-p`` or ``--params-file``) or
 later (``ros2 param set``, the evolution node): it must have the task network's
@@ -42,7 +42,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from sdbc_msgs.msg import RobotCommand, SensorReadings
-from sdbc_sim.network import NetworkShape, TeamNetworks
+from sdbc_sim.network import NetworkShape, forward
 from sdbc_sim.nodes.interface import (
     COMMAND_TOPIC,
     CONTROLLER_NODE,
@@ -114,7 +114,7 @@ class ControllerNode(Node):
             ),
         ).value
         self.shape = build_task(task_name, task_config).network
-        self._networks: TeamNetworks | None = None
+        self._genome: np.ndarray | None = None
         self._silent_warned = False
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -170,13 +170,12 @@ class ControllerNode(Node):
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
             if parameter.name == "genome" and parameter.type_ != Parameter.Type.NOT_SET:
-                genome = np.asarray(parameter.value, dtype=np.float64)[None]
-                self._networks = TeamNetworks(self.shape, genome, team_size=1)
+                self._genome = np.asarray(parameter.value, dtype=np.float64)
                 self._silent_warned = False
-                self.get_logger().debug(f"genome set ({genome.shape[1]} weights)")
+                self.get_logger().debug(f"genome set ({self._genome.size} weights)")
 
     def _answer(self, readings: SensorReadings) -> None:
-        if self._networks is None:
+        if self._genome is None:
             if not self._silent_warned:
                 self.get_logger().warning(
                     "sensor readings arrived but no genome is set: not answering"
@@ -191,7 +190,7 @@ class ControllerNode(Node):
                 f"{self.shape.n_inputs}: not answering"
             )
             return
-        outputs = self._networks.forward(x.reshape(1, 1, -1))[0, 0]
+        outputs = forward(self._genome, self.shape, x.reshape(1, -1))[0]
         command = RobotCommand(
             outputs=outputs.tolist(),
             trial_id=readings.trial_id,

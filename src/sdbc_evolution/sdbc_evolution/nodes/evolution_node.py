@@ -1,0 +1,374 @@
+"""``evolution_node``: an evolutionary experiment as a ROS 2 node.
+
+The node runs the same experiment as the command line (``sdbc-evolve``): the same
+configuration files and overrides (:func:`sdbc_evolution.cli.resolve_config`), the
+same runner (:class:`sdbc_evolution.experiment.Experiment`), the same output
+directory, checkpoints and ``resume``. After every generation it publishes its
+statistics on ``generation_stats`` (sdbc_msgs/GenerationStats) and the generation's
+best genome on ``best_genome`` (std_msgs/Float64MultiArray, latched).
+
+Where the trials run is the ``evaluator`` parameter:
+
+- ``local``: the engine, in this machine's processes (``workers``), as the command
+  line does;
+- ``live``: through the live graph (:class:`~sdbc_evolution.nodes.live_evaluator.
+  LiveEvaluator`): for each genome the node sets the controllers' ``genome``
+  parameters, asks the simulator for the trials, and builds the SDBC vectors from
+  the ``task_state`` topic. Same results as ``local``, to round-off; much slower.
+
+The current best can be watched live: the ``replay_best`` service (std_srvs/Trigger)
+runs it once on the graph (controllers and simulator), and the ``replay_best``
+parameter does so after every generation.
+
+The graph's task is named once, by the ``task`` and ``task_config`` parameters that
+``sdbc-graph`` gives every node; they take precedence over the experiment
+configuration's.
+
+Usage::
+
+    evolution_node --ros-args -p experiment_config:=configs/quickstart.yaml \\
+        -p output:=results/live -p evaluator:=live -p generations:=5
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from sdbc_sim.nodes.interface import (
+    BEST_GENOME_TOPIC,
+    DISPLAY_QOS,
+    EVOLUTION_NODE,
+    GENERATION_STATS_TOPIC,
+    LATCHED_QOS,
+    REPLAY_BEST_SERVICE,
+    parse_task_config,
+)
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_srvs.srv import Trigger
+
+from sdbc_evolution.checkpoint import CheckpointError
+from sdbc_evolution.cli import default_out, resolve_config
+from sdbc_evolution.config import ConfigError, ExperimentConfig
+from sdbc_evolution.evaluators import Evaluator, make_evaluator
+from sdbc_evolution.experiment import Experiment, task_spec
+from sdbc_evolution.nodes.graph_client import GraphClient, GraphClientError
+from sdbc_evolution.nodes.live_evaluator import LiveEvaluator
+from sdbc_evolution.results import GenerationRecord
+from sdbc_msgs.msg import GenerationStats
+
+EVALUATORS = ("local", "live")
+"""Values of the ``evaluator`` parameter."""
+TREATMENT_NAMES = {"fit": "Fit", "ns-ts": "NS-TS", "ns-sd": "NS-SD", "ns-sd+": "NS-SD+"}
+"""The paper's names of the treatments, as GenerationStats carries them."""
+DEFAULT_GRAPH_TIMEOUT = 60.0
+"""Seconds to wait for the live graph (simulator, controllers) to answer."""
+STOP_WAIT = 5.0
+"""Seconds the experiment thread gets to stop after Ctrl-C."""
+
+
+class EvolutionNode(Node):
+    """Runs one experiment and publishes its progress.
+
+    Parameters (ROS), all read-only:
+        task, task_config: The graph's task (empty task: the configuration's).
+        experiment_config: YAML experiment configuration (empty: quick start).
+        output: Results directory (empty: ``results/<task>-<treatment>-seed<s>``).
+        resume: Continue the run in ``output`` from its checkpoint.
+        evaluator: ``local`` or ``live``.
+        workers: Local worker processes (0: every core).
+        generations, population, trials: Overrides (0: the configuration's).
+        seed: Override of the run's seed (-1: the configuration's).
+        treatment: Override of the treatment (empty: the configuration's).
+        replay_best: Replay each generation's best live on the graph.
+        replay_seed: Seed of the replayed trials.
+        graph_timeout: Seconds to wait for the live graph.
+        exit_when_done: Leave when the run is complete (else keep serving
+            ``replay_best``).
+
+    Raises:
+        ValueError: A bad parameter or configuration, naming it.
+    """
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(EVOLUTION_NODE, **kwargs)
+        p = self._declare
+        self.task_name = p("task", "", "Task of the graph (empty: the config's)")
+        task_config = p("task_config", "", "YAML mapping of task setting overrides")
+        config_path = p("experiment_config", "", "Experiment YAML (empty: quick start)")
+        output = p("output", "", "Results directory (empty: results/<name>)")
+        resume = p("resume", False, "Continue the run in output from its checkpoint")
+        self.evaluator_name = p("evaluator", "local", "Where trials run: local or live")
+        workers = p("workers", 0, "Local worker processes (0: every core)", minimum=0)
+        overrides = {
+            name: p(name, 0, f"Override of {name} (0: the config's)", minimum=0)
+            for name in ("generations", "population", "trials")
+        }
+        seed = p(
+            "seed", -1, "Override of the run's seed (-1: the config's)", minimum=-1
+        )
+        treatment = p(
+            "treatment", "", "Override of the treatment (empty: the config's)"
+        )
+        self.replay_after_generation = p(
+            "replay_best", False, "Replay each generation's best on the live graph"
+        )
+        self.replay_seed = p("replay_seed", 0, "Seed of replayed trials", minimum=0)
+        self.graph_timeout = p(
+            "graph_timeout", DEFAULT_GRAPH_TIMEOUT, "Seconds to wait for the graph"
+        )
+        self.exit_when_done = p("exit_when_done", True, "Leave when the run is done")
+        if self.evaluator_name not in EVALUATORS:
+            raise ValueError(
+                f"parameter evaluator: {self.evaluator_name!r} is not one of "
+                f"{', '.join(EVALUATORS)}"
+            )
+        if not (np.isfinite(self.graph_timeout) and self.graph_timeout > 0):
+            raise ValueError(
+                f"parameter graph_timeout: must be positive, got {self.graph_timeout}"
+            )
+        args = argparse.Namespace(
+            config=Path(config_path) if config_path else None,
+            resume=resume,
+            out=Path(output) if output else None,
+            task=self.task_name or None,
+            treatment=treatment or None,
+            generations=overrides["generations"] or None,
+            population=overrides["population"] or None,
+            trials=overrides["trials"] or None,
+            seed=None if seed < 0 else seed,
+        )
+        try:
+            config = resolve_config(args)
+            if self.task_name:
+                config = config.replace(task_config=parse_task_config(task_config))
+                config = config.resolved()
+        except (ConfigError, CheckpointError, ValueError) as error:
+            raise ValueError(str(error)) from None
+        self.config: ExperimentConfig = config
+        self.task_name = config.task
+        self.out = args.out if args.out is not None else default_out(config)
+        self.resume = resume
+        self.workers = workers or None
+        self.spec = task_spec(config)
+        self.task = self.spec.build()
+        self.stop = threading.Event()
+        self.finished = threading.Event()
+        self.failure: str | None = None
+        self.best_genome: np.ndarray | None = None
+        self.best_generation = -1
+        self._client: GraphClient | None = None
+        self._client_lock = threading.Lock()
+        self._stats = self.create_publisher(
+            GenerationStats, GENERATION_STATS_TOPIC, DISPLAY_QOS
+        )
+        self._best = self.create_publisher(
+            Float64MultiArray, BEST_GENOME_TOPIC, LATCHED_QOS
+        )
+        self.create_service(
+            Trigger,
+            REPLAY_BEST_SERVICE,
+            self._serve_replay,
+            callback_group=MutuallyExclusiveCallbackGroup(),
+        )
+
+    def _declare(
+        self, name: str, default, description: str, minimum: int | None = None
+    ):
+        descriptor = ParameterDescriptor(description=description, read_only=True)
+        if minimum is not None:
+            descriptor.integer_range = [
+                IntegerRange(from_value=minimum, to_value=2**62)
+            ]
+        return self.declare_parameter(name, default, descriptor).value
+
+    def graph_client(self) -> GraphClient:
+        """The client of the live graph, created and connected on first use.
+
+        Raises:
+            GraphClientError: If the graph does not come up in time, or runs
+                another task.
+        """
+        with self._client_lock:
+            if self._client is None:
+                client = GraphClient(
+                    self,
+                    self.task,
+                    self.spec.name,
+                    dict(self.spec.overrides),
+                    timeout=self.graph_timeout,
+                    stop=self.stop,
+                )
+                client.wait_for_graph()
+                self._client = client
+            return self._client
+
+    def make_evaluator(self) -> Evaluator:
+        """The evaluator the ``evaluator`` parameter names."""
+        if self.evaluator_name == "live":
+            return LiveEvaluator(self.spec, self.graph_client())
+        return make_evaluator(self.spec, workers=self.workers)
+
+    def run(self) -> None:
+        """Runs the experiment to its end (or until :attr:`stop`); the body of
+        the experiment thread."""
+        try:
+            with self.make_evaluator() as evaluator:
+                if self.resume:
+                    experiment = Experiment.resume(self.config, self.out, evaluator)
+                else:
+                    experiment = Experiment.create(self.config, self.out, evaluator)
+                self.get_logger().info(
+                    f"{self.config.task} {self.config.treatment.value}: "
+                    f"{experiment.generations} generations into {self.out} "
+                    f"({self.evaluator_name} evaluation)"
+                )
+                started = time.monotonic()
+                while not experiment.finished and not self.stop.is_set():
+                    population = experiment.state.population
+                    record = experiment.step()
+                    self._publish(experiment, record, population, started)
+                    if self.replay_after_generation:
+                        self.replay()
+            if not self.stop.is_set():
+                self.get_logger().info(f"run complete: results in {self.out}")
+        except Exception as err:  # the thread's failure must reach the exit status
+            if not self.stop.is_set():
+                self.failure = f"{type(err).__name__}: {err}"
+                self.get_logger().error(f"run failed: {self.failure}")
+        finally:
+            self.finished.set()
+
+    def _publish(
+        self,
+        experiment: Experiment,
+        record: GenerationRecord,
+        population: np.ndarray,
+        started: float,
+    ) -> None:
+        genome = population[record.best_index]
+        self.best_genome, self.best_generation = genome.copy(), record.generation
+        stats = GenerationStats(
+            experiment=self.out.name,
+            task=self.config.task,
+            treatment=TREATMENT_NAMES.get(
+                self.config.treatment.value, self.config.treatment.value
+            ),
+            best_fitness=record.best_fitness,
+            mean_fitness=record.mean_fitness,
+            median_fitness=record.median_fitness,
+            best_novelty=float(np.nan_to_num(record.best_novelty, nan=0.0)),
+            best_genome=genome.tolist(),
+            archive_size=record.archive_size,
+            wall_time=time.monotonic() - started,
+            generation=record.generation,
+        )
+        if record.weights is not None:
+            stats.weights = np.asarray(record.weights, dtype=float).tolist()
+            stats.feature_names = list(experiment.info.sdbc_names)
+        stats.header.stamp = self.get_clock().now().to_msg()
+        self._stats.publish(stats)
+        best = Float64MultiArray(data=genome.tolist())
+        best.layout.dim = [
+            MultiArrayDimension(label="genome", size=genome.shape[0], stride=1)
+        ]
+        self._best.publish(best)
+        self.get_logger().info(
+            f"generation {record.generation}: best {record.best_fitness:.4f}, "
+            f"mean {record.mean_fitness:.4f}"
+        )
+
+    def replay(self) -> str:
+        """Runs the current best genome once on the live graph; returns a line
+        saying how it did.
+
+        Raises:
+            GraphClientError: No generation finished yet, or the graph failed.
+        """
+        genome, generation = self.best_genome, self.best_generation
+        if genome is None:
+            raise GraphClientError("no generation has finished yet: no best to replay")
+        client = self.graph_client()
+        with client.lock:
+            client.set_genome(genome)
+            trial = client.run_trial(self.replay_seed)
+        line = (
+            f"replay of generation {generation}'s best (seed {self.replay_seed}): "
+            f"fitness {trial.fitness:.4f}, {trial.length} steps"
+        )
+        self.get_logger().info(line)
+        return line
+
+    def _serve_replay(
+        self, request: Trigger.Request, response: Trigger.Response
+    ) -> Trigger.Response:
+        try:
+            response.message = self.replay()
+            response.success = True
+        except GraphClientError as error:
+            response.success, response.message = False, str(error)
+        return response
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv if argv is None else argv)
+    try:
+        unknown = rclpy.utilities.remove_ros_args(argv)[1:]
+    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
+        print(f"evolution_node: error: {error}", file=sys.stderr)
+        return 2
+    if unknown:
+        print(
+            f"evolution_node: error: unknown arguments {unknown}; ROS arguments go "
+            "after --ros-args",
+            file=sys.stderr,
+        )
+        return 2
+    rclpy.init(args=argv)
+    node: EvolutionNode | None = None
+    # Threads for the replay service and the graph client's answers, while the
+    # experiment runs in a thread of its own.
+    executor = MultiThreadedExecutor(num_threads=3)
+    thread: threading.Thread | None = None
+    status = 0
+    try:
+        node = EvolutionNode()
+        executor.add_node(node)
+        thread = threading.Thread(target=node.run, name="experiment", daemon=True)
+        thread.start()
+        while not (node.finished.is_set() and node.exit_when_done):
+            executor.spin_once(timeout_sec=0.2)
+        status = 1 if node.failure else 0
+    except ValueError as error:
+        print(f"evolution_node: error: {error}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        if node is not None:
+            node.stop.set()
+            print(
+                "evolution_node: interrupted; resume with resume:=true "
+                f"output:={node.out}",
+                file=sys.stderr,
+            )
+    finally:
+        if thread is not None:
+            thread.join(STOP_WAIT)
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
