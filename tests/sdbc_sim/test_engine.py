@@ -260,3 +260,24 @@ def test_unknown_fitness_mean_and_bad_outputs() -> None:
     sim = BatchSimulation(task, np.array([0]))
     with pytest.raises(ValueError, match="no genomes; pass outputs"):
         sim.step()
+
+
+def test_state_after_all_but_one_trial_ended(placed) -> None:
+    start = [[10.0, 100.0], [150.0, 20.0], [150.0, 60.0], [150.0, 180.0]]
+    task = placed(make_task("gate_escape", max_steps=120), start, [np.pi, 0, 0, 0])
+    sim = BatchSimulation(
+        task, np.array([0, 1]), settings=EngineSettings(compact_fraction=0.1)
+    )
+    out = np.zeros((2, 4, 3))
+    out[..., 1] = 0.5
+    out[..., 2] = 1.0
+    out[0, 0] = [1.0, 0.5, 0.0]  # trial 0 escapes at 12, ends at 87
+    while not sim.finished:
+        sim.step(out[sim.live])
+        state = sim.state()
+        agents = state.groups[0]
+        if sim.step_count == 100:
+            assert sim.live.tolist() == [1] and state.active.tolist() == [False, True]
+            np.testing.assert_array_equal(agents.centres[1], np.array(start))
+            assert agents.present[1].all() and agents.radii[1].tolist() == [2.5] * 4
+    assert sim.length.tolist() == [87, 120]

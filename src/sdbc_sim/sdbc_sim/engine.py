@@ -134,7 +134,8 @@ class BatchSimulation:
 
     @property
     def live(self) -> np.ndarray:
-        """Indices of the trials whose rows the arrays hold, in row order."""
+        """Indices of the trials whose rows the arrays hold, in row order; they
+        change only at the end of :meth:`step`."""
         return self.spaces.live
 
     @property
@@ -168,7 +169,6 @@ class BatchSimulation:
         """
         if self.finished:
             raise RuntimeError("step: every trial has ended")
-        self._compact_if_worthwhile()
         task = self.task
         n_live = self.live.shape[0]
         shape = (n_live, self._n_ctrl, task.network.n_outputs)
@@ -213,6 +213,7 @@ class BatchSimulation:
             self.characterisation[ids] = c
             self.done[ids] = True
             self._running &= ~ends
+        self._compact_if_worthwhile()
 
     def _drive(self, speed: np.ndarray, turn: np.ndarray) -> np.ndarray:
         """Drive rows (rows, 4): angle, angular velocity, force x, force y.
@@ -244,11 +245,13 @@ class BatchSimulation:
         return drive
 
     def _compact_if_worthwhile(self) -> None:
-        n_live = self._running.shape[0]
-        ended = n_live - int(self._running.sum())
+        """Drops the rows of trials that ended before the last step (those that
+        ended at it stay for :meth:`state`) once they are worth dropping."""
+        keep = self._running | self._took_step
+        n_live = keep.shape[0]
+        ended = n_live - int(keep.sum())
         if ended == 0 or ended < self.settings.compact_fraction * n_live:
             return
-        keep = self._running
         rows = np.flatnonzero(keep)
         self.spaces.compact(keep)
         self.trials = self.trials.take(rows)
@@ -284,15 +287,16 @@ class BatchSimulation:
         )
 
     def _expand(self, index: int, group: GroupState) -> GroupState:
-        """A group over the live rows spread over the whole batch."""
+        """A group over the live rows spread over the whole batch (with a single
+        live trial, shared arrays are spread too: only its row is read)."""
         n_live = self.live.shape[0]
         out = {}
         for j, name in enumerate(
             ("present", "attributes", "centres", "radii", "segments")
         ):
             a = getattr(group, name)
-            if a is None or a.shape[0] != n_live or n_live == 1 and a.shape[0] == 1:
-                out[name] = a
+            if a is None or a.shape[0] != n_live:
+                out[name] = a  # shared by every trial
                 continue
             key = (index, j)
             buf = self._full.get(key)
