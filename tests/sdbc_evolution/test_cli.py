@@ -56,6 +56,17 @@ def test_run_then_resume_for_more_generations(
     assert load_config(out / "config.yaml").generations == 3
 
 
+def test_the_best_individual_is_rendered_to_a_gif(
+    tmp_path: Path, tiny: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    argv = ["--config", str(tiny), "--out", str(out), "--quiet", "--workers", "2"]
+    assert main(argv) == 0
+    gif = out / "best.gif"
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+    assert f"its trial: {gif.resolve()}" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
