@@ -52,6 +52,7 @@ class TrialAggregator:
         self._length = np.zeros(n_trials, dtype=np.int64)
         self._value = np.empty((n_features, n_trials))
         self._defined = np.empty((n_features, n_trials), dtype=bool)
+        self._undefined = np.empty((n_features, n_trials), dtype=bool)
 
     @property
     def n_trials(self) -> int:
@@ -73,27 +74,32 @@ class TrialAggregator:
                 f"aggregator: values {values.shape} and active {active.shape} do not "
                 f"fit {self.n_trials} trials of {self.n_features} features"
             )
-        defined = ~np.isnan(values.T)
+        defined = np.isnan(values.T, out=self._defined)
+        np.logical_not(defined, out=defined)
         defined &= active
-        self._add(np.where(defined, values.T, 0.0), defined, active)
+        np.copyto(self._value, values.T)
+        self._add(defined, active)
 
     def update_from_totals(
         self, total: np.ndarray, count: np.ndarray, active: np.ndarray
     ) -> None:
         """Adds one step given each feature as ``total / count``, both (F, B),
-        undefined where the count is 0; saves :meth:`update`'s NaN round trip."""
+        undefined where the count is 0; saves :meth:`update`'s NaN round trip.
+        Counts are whole numbers >= 0."""
         defined = np.greater(count, 0.0, out=self._defined)
         defined &= active
-        value = self._value
-        value.fill(0.0)
-        np.divide(total, count, out=value, where=defined)
-        self._add(value, defined, active)
+        # Where the count is 0 the total is 0 too: dividing by 1 instead keeps 0.
+        np.divide(total, np.maximum(count, 1.0, out=self._value), out=self._value)
+        self._add(defined, active)
 
-    def _add(self, value: np.ndarray, defined: np.ndarray, active: np.ndarray) -> None:
-        # value is 0 wherever the feature is undefined or the trial inactive.
+    def _add(self, defined: np.ndarray, active: np.ndarray) -> None:
+        # Undefined and inactive values may be anything: overwritten, never added.
+        # (np.putmask is several times faster than ufuncs with where=.)
+        value = self._value
+        np.putmask(value, np.logical_not(defined, out=self._undefined), 0.0)
         self._sum += value
         self._count += defined
-        np.copyto(self._last, value, where=defined)
+        np.putmask(self._last, defined, value)
         self._length += active
 
     @property

@@ -32,7 +32,6 @@ import numpy as np
 from sdbc_sim.task_state import (
     EntityGroupSpec,
     Geometry,
-    GroupState,
     TaskDescription,
     TaskState,
 )
@@ -160,60 +159,89 @@ def behaviour_features(description: TaskDescription) -> tuple[BehaviourFeature, 
     return tuple(features)
 
 
+def _zero_where(array: np.ndarray, mask: np.ndarray) -> None:
+    """Sets ``array`` to 0 where the broadcast ``mask`` holds, in place.
+
+    Absent slots may hold anything, NaN included, so they are overwritten, never
+    multiplied by 0. (``np.copyto`` with ``where=`` is fast for the mostly False
+    masks of absent entities; ``np.putmask`` is faster only for dense masks.)
+    """
+    np.copyto(array, 0.0, where=mask)
+
+
+_BOOL = np.dtype(np.bool_)
+_FLOAT = np.dtype(np.float64)
+
+
 def validate_task_state(
     description: TaskDescription, state: TaskState, n_trials: int
 ) -> None:
-    """Checks that a task state has the shapes its description promises.
+    """Checks that a task state has the shapes and dtypes its description promises.
 
     Raises:
         ValueError: Naming the group and array that do not fit.
     """
-    where = f"task {description.name!r}, step {state.step}"
-    active = np.asarray(state.active)
-    if active.shape != (n_trials,) or active.dtype != np.bool_:
+    active = state.active
+    if (
+        not isinstance(active, np.ndarray)
+        or active.shape != (n_trials,)
+        or active.dtype != _BOOL
+    ):
         raise ValueError(
-            f"{where}: active must be a ({n_trials},) bool array, got {active.dtype} "
-            f"{active.shape}"
+            f"task {description.name!r}, step {state.step}: active must be a "
+            f"({n_trials},) bool array, got {np.asarray(active).dtype} "
+            f"{np.shape(active)}"
         )
     if len(state.groups) != len(description.groups):
         raise ValueError(
-            f"{where}: {len(state.groups)} groups in the state, "
-            f"{len(description.groups)} in the description"
+            f"task {description.name!r}, step {state.step}: {len(state.groups)} groups "
+            f"in the state, {len(description.groups)} in the description"
         )
     for spec, group in zip(description.groups, state.groups, strict=True):
-        _validate_group(where, spec, group, n_trials)
+        size = spec.max_size
+        _check_array(description, state, spec, "present", group.present, (size,))
+        tail = (size, len(spec.attributes))
+        _check_array(description, state, spec, "attributes", group.attributes, tail)
+        if spec.geometry is Geometry.POLYGON:
+            # Any number P >= 1 of segments per polygon.
+            seg = group.segments
+            n_segments = seg.shape[2] if getattr(seg, "ndim", 0) == 5 else 0
+            tail = (size, max(n_segments, 1), 2, 2)
+            _check_array(description, state, spec, "segments", seg, tail)
+        else:
+            _check_array(description, state, spec, "centres", group.centres, (size, 2))
+            if spec.geometry is Geometry.CIRCLE:
+                _check_array(description, state, spec, "radii", group.radii, (size,))
 
 
-def _validate_group(
-    where: str, spec: EntityGroupSpec, group: GroupState, n_trials: int
+def _check_array(
+    description: TaskDescription,
+    state: TaskState,
+    spec: EntityGroupSpec,
+    label: str,
+    array: np.ndarray | None,
+    tail: tuple[int, ...],
 ) -> None:
-    def check(label: str, array: object, tail: tuple[int, ...]) -> None:
-        if not isinstance(array, np.ndarray):
-            raise ValueError(f"{where}, group {spec.name!r}: {label} is missing")
-        if array.shape[:1] not in ((1,), (n_trials,)) or array.shape[1:] != tail:
-            raise ValueError(
-                f"{where}, group {spec.name!r}: {label} has shape {array.shape}, "
-                f"expected ({n_trials} or 1, {', '.join(map(str, tail))})"
-            )
-        expected = np.bool_ if label == "present" else np.float64
-        if array.dtype != expected:
-            raise ValueError(
-                f"{where}, group {spec.name!r}: {label} has dtype {array.dtype}, "
-                f"expected {np.dtype(expected)}"
-            )
-
-    size = spec.max_size
-    check("present", group.present, (size,))
-    check("attributes", group.attributes, (size, len(spec.attributes)))
-    if spec.geometry is Geometry.POLYGON:
-        # Any number P >= 1 of segments per polygon.
-        segments = group.segments
-        n_segments = segments.shape[2] if getattr(segments, "ndim", 0) == 5 else 0
-        check("segments", segments, (size, max(n_segments, 1), 2, 2))
-    else:
-        check("centres", group.centres, (size, 2))
-        if spec.geometry is Geometry.CIRCLE:
-            check("radii", group.radii, (size,))
+    """One array of a group: (B or 1, *tail), bool for presence, else float64."""
+    expected = _BOOL if label == "present" else _FLOAT
+    if (
+        isinstance(array, np.ndarray)
+        and array.shape[1:] == tail
+        and (array.shape[0] == 1 or array.shape[0] == state.active.shape[0])
+        and array.dtype == expected
+    ):
+        return
+    where = f"task {description.name!r}, step {state.step}, group {spec.name!r}"
+    if not isinstance(array, np.ndarray):
+        raise ValueError(f"{where}: {label} is missing")
+    if array.dtype != expected:
+        raise ValueError(
+            f"{where}: {label} has dtype {array.dtype}, expected {expected}"
+        )
+    raise ValueError(
+        f"{where}: {label} has shape {array.shape}, expected "
+        f"({state.active.shape[0]} or 1, {', '.join(map(str, tail))})"
+    )
 
 
 class StepFeatures:
@@ -370,7 +398,7 @@ class StepFeatures:
                     np.copyto(values, source)
                     if not full[g]:
                         # Absent slots may hold anything, NaN included: zero them.
-                        np.copyto(values, 0.0, where=absence(g)[None])
+                        _zero_where(values, absence(g)[None])
                     rows = total[f : f + len(spec.attributes)]
                     if values.shape[2:] == rows.shape[1:]:
                         np.add.reduce(values, axis=1, out=rows)
@@ -391,7 +419,7 @@ class StepFeatures:
                     a = absence(g)
                     invalid = ws.get(("invalid", f), (len(i),) + a.shape[1:], np.bool_)
                     np.logical_or(a[i], a[j], out=invalid)
-                    np.copyto(d, 0.0, where=invalid)
+                    _zero_where(d, invalid)
                     n = size(g)
                     count[f] = n * (n - 1.0) / 2.0
                 reduce_into(f, d, (0,))
@@ -409,7 +437,7 @@ class StepFeatures:
                         np.logical_or(
                             absence(g)[:, None], absence(h)[None], out=invalid
                         )
-                    np.copyto(d, 0.0, where=invalid)
+                    _zero_where(d, invalid)
                     count[f] = size(g) * size(h)
                 reduce_into(f, d, (0, 1))
         return total, count
