@@ -104,10 +104,11 @@ def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
     assert r.length[17, 2] == result.length[g, t]
 
 
-def test_another_process_gives_the_same_trial(big_batch) -> None:
+def test_another_process_gives_the_same_trial(big_batch, tmp_path) -> None:
     task, genomes, seeds, picks, _, result = big_batch
     g, t = picks[2]
-    np.save(Path(__file__).parent / ".engine_genome.npy", genomes[g])
+    genome_file = tmp_path / "genome.npy"
+    np.save(genome_file, genomes[g])
     script = (
         "import numpy as np, sys\n"
         "from sdbc_sim import run_batch\n"
@@ -119,21 +120,13 @@ def test_another_process_gives_the_same_trial(big_batch) -> None:
         " *[v.hex() for v in r.characterisation[0, 0]])\n"
     )
     src = Path(__file__).resolve().parents[2] / "src" / "sdbc_sim"
-    try:
-        out = subprocess.run(
-            [
-                sys.executable,
-                "-c",
-                script,
-                str(Path(__file__).parent / ".engine_genome.npy"),
-            ],
-            capture_output=True,
-            text=True,
-            check=True,
-            env={"PYTHONPATH": str(src), "PATH": ""},
-        ).stdout.split()
-    finally:
-        (Path(__file__).parent / ".engine_genome.npy").unlink()
+    out = subprocess.run(
+        [sys.executable, "-c", script, str(genome_file)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"PYTHONPATH": str(src), "PATH": ""},
+    ).stdout.split()
     assert float.fromhex(out[0]) == result.fitness[g, t]
     assert int(out[1]) == result.length[g, t]
     assert [float.fromhex(v) for v in out[2:]] == result.characterisation[g, t].tolist()
