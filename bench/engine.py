@@ -5,7 +5,9 @@ trials with random genomes (uniform in [-1, 1]):
 
 - engine: :func:`sdbc_sim.run_batch` on the whole batch;
 - naive: the same task code one trial at a time, one Space per trial, a Python
-  loop over trials (measured on ``--naive-trials`` trials and scaled);
+  loop over trials: after every engine step, ``--naive-trials`` steps of lone
+  trials (the batch's first ``--naive-trials`` trials, in turn), so that engine
+  and naive run under the same load on a shared machine;
 - floor: the same Spaces stepped with bulk transfer only: the time the engine run
   itself spent reading the bodies in bulk and setting their drive and stepping
   chipmunk (same Spaces, same motion, same contacts), without sensors, network,
@@ -29,20 +31,24 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import time
+from dataclasses import dataclass
 
 import numpy as np
-from sdbc_sim.engine import BatchSimulation, EngineSettings, run_batch
+from sdbc_sim.engine import BatchSimulation, EngineSettings
 from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import available_tasks, make_task
 
 
 class PhysicsClock:
-    """Times TrialSpaces.read and TrialSpaces.step (bulk transfer and chipmunk)."""
+    """Times TrialSpaces.read and TrialSpaces.step (bulk transfer and chipmunk)
+    while ``on``."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
+        self.on = False
         self._saved = (TrialSpaces.read, TrialSpaces.step)
 
     def __enter__(self) -> PhysicsClock:
@@ -52,12 +58,14 @@ class PhysicsClock:
         def timed_read(spaces: TrialSpaces, out: np.ndarray) -> None:
             t0 = time.perf_counter()
             read(spaces, out)
-            clock.seconds += time.perf_counter() - t0
+            if clock.on:
+                clock.seconds += time.perf_counter() - t0
 
         def timed_step(spaces: TrialSpaces, drive: np.ndarray) -> None:
             t0 = time.perf_counter()
             step(spaces, drive)
-            clock.seconds += time.perf_counter() - t0
+            if clock.on:
+                clock.seconds += time.perf_counter() - t0
 
         TrialSpaces.read, TrialSpaces.step = timed_read, timed_step
         return self
@@ -66,33 +74,62 @@ class PhysicsClock:
         TrialSpaces.read, TrialSpaces.step = self._saved
 
 
-def engine_rate(
-    task: Task, genomes: np.ndarray, seeds: np.ndarray, settings: EngineSettings
-) -> tuple[float, float, int]:
-    """(robot-steps per second of run_batch, of its bulk transfer and chipmunk
-    steps alone, trial steps) on the whole batch."""
+@dataclass
+class Rates:
+    """Robot-steps per second measured in one interleaved run."""
+
+    engine: float
+    naive: float
+    floor: float
+    steps: int
+
+
+def measure(
+    task: Task,
+    genomes: np.ndarray,
+    seeds: np.ndarray,
+    settings: EngineSettings,
+    naive_trials: int,
+) -> Rates:
+    """Runs the whole batch through the engine and, between its steps,
+    ``naive_trials`` steps of trials run one at a time (the batch's first
+    ``naive_trials`` trials, over and over), so that both see the same load.
+
+    The engine is :func:`sdbc_sim.run_batch`'s loop (a BatchSimulation of every
+    trial, stepped until all have ended); the floor is the engine's own time in
+    bulk transfer and chipmunk steps.
+    """
+    n_trials = seeds.shape[1]
+    flat_g = np.repeat(genomes, n_trials, axis=0)
+    flat_s = seeds.reshape(-1)
+    sim = BatchSimulation(task, flat_s, flat_g, settings)
+    pick = itertools.cycle(range(min(naive_trials, flat_s.shape[0])))
+    lone: BatchSimulation | None = None
+    engine_s = naive_s = 0.0
+    naive_steps = 0
     with PhysicsClock() as clock:
-        t0 = time.perf_counter()
-        result = run_batch(task, genomes, seeds, settings=settings)
-        elapsed = time.perf_counter() - t0
-    steps = int(result.length.sum())
-    robot_steps = steps * task.layout.n_bodies
-    return robot_steps / elapsed, robot_steps / clock.seconds, steps
-
-
-def naive_rate(task: Task, genomes: np.ndarray, seeds: np.ndarray, n: int) -> float:
-    """Robot-steps per second of the first ``n`` trials run one at a time."""
-    flat_g = np.repeat(genomes, seeds.shape[1], axis=0)[:n]
-    flat_s = seeds.reshape(-1)[:n]
-    steps = 0
-    t0 = time.perf_counter()
-    for g, s in zip(flat_g, flat_s, strict=True):
-        sim = BatchSimulation(task, np.array([s]), g[None])
         while not sim.finished:
+            clock.on = True
+            t0 = time.perf_counter()
             sim.step()
-        steps += int(sim.length[0])
-    elapsed = time.perf_counter() - t0
-    return steps * task.layout.n_bodies / elapsed
+            engine_s += time.perf_counter() - t0
+            clock.on = False
+            t0 = time.perf_counter()
+            for _ in range(naive_trials):
+                if lone is None or lone.finished:
+                    k = next(pick)
+                    lone = BatchSimulation(task, flat_s[k : k + 1], flat_g[k : k + 1])
+                lone.step()
+                naive_steps += 1
+            naive_s += time.perf_counter() - t0
+    steps = int(sim.length.sum())
+    per_step = task.layout.n_bodies
+    return Rates(
+        engine=steps * per_step / engine_s,
+        naive=naive_steps * per_step / naive_s if naive_steps else float("nan"),
+        floor=steps * per_step / clock.seconds,
+        steps=steps,
+    )
 
 
 def standalone_floor_rate(
@@ -138,8 +175,8 @@ def main() -> None:
         genomes = rng.uniform(-1.0, 1.0, (args.genomes, task.genome_length))
         seeds = rng.integers(0, 2**31, (args.genomes, args.trials))
         n_trials = seeds.size
-        engine, floor, steps = engine_rate(task, genomes, seeds, settings)
-        naive = naive_rate(task, genomes, seeds, min(args.naive_trials, n_trials))
+        r = measure(task, genomes, seeds, settings, args.naive_trials)
+        engine, naive, floor, steps = r.engine, r.naive, r.floor, r.steps
         print(
             f"{name}: {n_trials} trials, {steps / n_trials:.0f} steps per trial; "
             f"robot-steps/s engine {engine:,.0f}, naive {naive:,.0f}, "
@@ -159,10 +196,8 @@ def main() -> None:
             for _ in range(args.repeat):
                 for k in sizes:
                     physics = dataclasses.replace(settings.physics, trials_per_space=k)
-                    rate, f, _ = engine_rate(
-                        task, genomes, seeds, EngineSettings(physics)
-                    )
-                    best[k] = max(best[k], (rate, f))
+                    m = measure(task, genomes, seeds, EngineSettings(physics), 0)
+                    best[k] = max(best[k], (m.engine, m.floor))
             for k in sizes:
                 rate, f = best[k]
                 print(f"  trials_per_space={k}: engine {rate:,.0f}, floor {f:,.0f}")
