@@ -74,8 +74,8 @@ def pairwise_offsets(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     Returns:
         dx, dy, dist: (B, N, N) each, entry [b, i, j] from robot i to robot j.
     """
-    x = pos[..., 0]
-    y = pos[..., 1]
+    x = np.ascontiguousarray(pos[..., 0])
+    y = np.ascontiguousarray(pos[..., 1])
     dx = x[:, None, :] - x[:, :, None]
     dy = y[:, None, :] - y[:, :, None]
     return dx, dy, norm(dx, dy)
@@ -149,7 +149,8 @@ def ray_segment_distance(
     Solves o + t u = a + s (b - a) for every ray and segment:
     t = ((a - o) x e) / (u x e), s = ((a - o) x u) / (u x e), with e = b - a and
     p x q = p_x q_y - p_y q_x; a hit needs 0 <= t <= length and 0 <= s <= 1.
-    Parallel rays and segments never hit.
+    Parallel rays and segments never hit. Each segment only looks at the rays
+    starting within ``length`` of its bounding box.
 
     Args:
         origins: (M, 2) ray starts.
@@ -160,18 +161,28 @@ def ray_segment_distance(
     Returns:
         (M,) distance t of the nearest hit, inf where the ray hits nothing.
     """
-    ox, oy = origins[:, 0], origins[:, 1]
-    ux, uy = directions[:, 0], directions[:, 1]
+    ox_all, oy_all = origins[:, 0], origins[:, 1]
     nearest = np.full(origins.shape[0], np.inf)
     for (ax, ay), (bx, by) in segments.tolist():
+        near = np.flatnonzero(
+            (ox_all >= min(ax, bx) - length)
+            & (ox_all <= max(ax, bx) + length)
+            & (oy_all >= min(ay, by) - length)
+            & (oy_all <= max(ay, by) + length)
+        )
+        if near.size == 0:
+            continue
+        ox, oy = ox_all[near], oy_all[near]
+        ux, uy = directions[near, 0], directions[near, 1]
         ex, ey = bx - ax, by - ay
         wx, wy = ax - ox, ay - oy
         denom = ux * ey - uy * ex
         with np.errstate(divide="ignore", invalid="ignore"):
             t = (wx * ey - wy * ex) / denom
             s = (wx * uy - wy * ux) / denom
-        hit = (t >= 0.0) & (t <= length) & (s >= 0.0) & (s <= 1.0) & (t < nearest)
-        nearest[hit] = t[hit]
+        best = nearest[near]
+        hit = (t >= 0.0) & (t <= length) & (s >= 0.0) & (s <= 1.0) & (t < best)
+        nearest[near[hit]] = t[hit]
     return nearest
 
 
