@@ -75,6 +75,7 @@ def big_batch():
     return task, genomes, seeds, picks, watch, result
 
 
+@pytest.mark.slow
 def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
     task, genomes, seeds, picks, watch, result = big_batch
     # The batch is only a test of independence if robots did touch.
@@ -89,6 +90,7 @@ def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
         assert same(alone.of(0), watch.of(k))
 
 
+@pytest.mark.slow
 def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
     task, genomes, seeds, picks, _, result = big_batch
     g, t = picks[1]
@@ -104,6 +106,7 @@ def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
     assert r.length[17, 2] == result.length[g, t]
 
 
+@pytest.mark.slow
 def test_another_process_gives_the_same_trial(big_batch, tmp_path) -> None:
     task, genomes, seeds, picks, _, result = big_batch
     g, t = picks[2]
