@@ -13,6 +13,10 @@ contacts in the same order whatever else is in the Space. Robot shapes are added
 before any wall, so their hash ids are 0..n-1 in row order, below the size of
 chipmunk's handle set; the set then iterates them in row order, and two robots of a
 trial always meet in the same order and orientation. ``Space.threads`` is never used.
+(One residual path remains in principle: chipmunk's hash table could alias two
+adjacent cells that one robot covers in one batch and not in another, changing
+the order in which it finds that robot's contacts; the determinism tests, with
+robots in constant contact, have not met it.)
 
 Contacts. Chipmunk moves bodies before it looks for contacts, so a body that meets
 a wall or another body during a step ends that step overlapping it by up to its
