@@ -1,0 +1,216 @@
+"""``sdbc-study``: the paper's study, its figures, tables and report, in one command.
+
+Examples::
+
+    sdbc-study --preset smoke                     # run, then analyse
+    sdbc-study run --preset local --task gate_escape --out results/study-local
+    sdbc-study run --preset paper --scheduler tcp://10.0.0.5:8786
+    sdbc-study analyse results/study-local --out docs/study/local
+    sdbc-study measure --preset local             # what the study would cost here
+
+``run`` is resumable: run it again with the same ``--preset`` and ``--out`` and it
+skips finished runs and resumes interrupted ones. Also ``python -m
+sdbc_evolution.study``.
+
+Exit status: 0 done, 1 some run failed, 2 bad input (preset, task, directory,
+scheduler), 130 interrupted (run the same command again to resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from sdbc_evolution.evaluators import DEFAULT_CONNECT_TIMEOUT, SchedulerUnreachable
+from sdbc_evolution.study.presets import (
+    PRESET_NAMES,
+    PresetError,
+    StudyPreset,
+    load_preset,
+)
+
+RESULTS_ROOT = Path("results")
+"""Where studies go when ``--out`` is not given: ``results/study-<preset>``."""
+COMMANDS = ("run", "analyse", "all", "measure")
+"""Subcommands; ``all`` (run, then analyse) when none is given."""
+
+
+def _run_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--preset",
+        default="smoke",
+        help=f"{', '.join(PRESET_NAMES)} or a preset YAML file (default: smoke)",
+    )
+    parser.add_argument(
+        "--task",
+        action="append",
+        help="run only this task (repeatable; default: every task of the preset)",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        help=f"study directory (default: {RESULTS_ROOT}/study-<preset>)",
+    )
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        help="local runs side by side, one process each (default: every core)",
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="evaluate on a Dask cluster instead"
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=DEFAULT_CONNECT_TIMEOUT,
+        help="seconds to wait for the Dask scheduler",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sdbc-study",
+        description=(
+            "Replicate the study of Gomes, Mariano & Christensen (ALIFE 2014): "
+            "4 treatments x 3 tasks x R runs at a preset's scale, then the "
+            "analysis (curves, boxplots, Mann-Whitney U, MI relevance, SOM "
+            "exploration maps) and a Markdown report."
+        ),
+    )
+    sub = parser.add_subparsers(dest="command")
+    run = sub.add_parser("run", help="run (or resume) the study's runs")
+    _run_options(run)
+    both = sub.add_parser("all", help="run, then analyse (the default)")
+    _run_options(both)
+    both.add_argument(
+        "--report", type=Path, help="report directory (default: STUDY/report)"
+    )
+    analyse = sub.add_parser("analyse", help="figures, tables and report of a study")
+    analyse.add_argument("study", type=Path, help="the study directory")
+    analyse.add_argument(
+        "--out", type=Path, help="report directory (default: STUDY/report)"
+    )
+    measure = sub.add_parser(
+        "measure", help="time a few generations per task and project the study"
+    )
+    measure.add_argument("--preset", default="local", help="preset (default: local)")
+    measure.add_argument("--task", action="append", help="task(s) to measure")
+    measure.add_argument(
+        "--generations", type=int, default=3, help="generations per probe run"
+    )
+    measure.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="runs side by side in the projection (default: every core)",
+    )
+    return parser
+
+
+def _error(message: str) -> int:
+    print(f"sdbc-study: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _preset(args: argparse.Namespace) -> StudyPreset:
+    preset = load_preset(args.preset)
+    for task in args.task or ():
+        if task not in preset.tasks:
+            raise PresetError(
+                f"--task {task}: not in preset {preset.name!r} "
+                f"(its tasks: {', '.join(preset.tasks)})"
+            )
+    return preset
+
+
+def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
+    from sdbc_evolution.study.runner import Execution, StudyError, run_study
+
+    try:
+        preset = _preset(args)
+        execution = Execution(
+            workers=args.workers,
+            scheduler=args.scheduler,
+            connect_timeout=args.connect_timeout,
+        )
+    except (PresetError, ValueError) as error:
+        return _error(str(error)), None
+    out = args.out if args.out is not None else RESULTS_ROOT / f"study-{preset.name}"
+    try:
+        outcome = run_study(
+            preset,
+            out,
+            tasks=args.task,
+            execution=execution,
+            quiet=args.quiet,
+            command=["sdbc-study", *argv],
+        )
+    except (StudyError, SchedulerUnreachable, ValueError) as error:
+        return _error(str(error)), None
+    if outcome.interrupted:
+        print(
+            f"\ninterrupted; resume with the same command "
+            f"(--preset {args.preset} --out {out})",
+            file=sys.stderr,
+        )
+        return 130, out
+    for task, seconds in outcome.task_seconds.items():
+        print(f"{task}: {seconds / 60:.1f} min in this session")
+    print(f"study: {out.resolve()}")
+    return (1 if outcome.failed else 0), out
+
+
+def _analyse(study: Path, out: Path | None, argv: list[str]) -> int:
+    from sdbc_evolution.study.analysis import REPORT_FILE, analyse
+
+    try:
+        analysis = analyse(study, out, command=["sdbc-study", *argv])
+    except FileNotFoundError as error:
+        return _error(str(error))
+    for problem in analysis.problems:
+        print(f"left out {problem.name}: {problem.reason}", file=sys.stderr)
+    print(f"report: {(analysis.out / REPORT_FILE).resolve()}")
+    return 0
+
+
+def _measure(args: argparse.Namespace) -> int:
+    from sdbc_evolution.study.measure import probe, probe_report
+
+    try:
+        preset = _preset(args)
+        if args.workers < 1:
+            raise PresetError(f"--workers: must be at least 1, got {args.workers}")
+        if args.generations < 2:
+            raise PresetError(
+                f"--generations: must be at least 2, got {args.generations}"
+            )
+    except PresetError as error:
+        return _error(str(error))
+    tasks = args.task or list(preset.tasks)
+    probes = {task: probe(preset, task, args.generations) for task in tasks}
+    print(probe_report(preset, probes, args.workers))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] not in (*COMMANDS, "-h", "--help"):
+        argv = ["all", *argv]
+    args = build_parser().parse_args(argv)
+    if args.command == "analyse":
+        return _analyse(args.study, args.out, argv)
+    if args.command == "measure":
+        return _measure(args)
+    status, out = _run(args, argv)
+    if args.command == "run" or status != 0 or out is None:
+        return status
+    return _analyse(out, args.report, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

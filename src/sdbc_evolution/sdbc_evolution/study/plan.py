@@ -1,0 +1,180 @@
+"""The runs of a study: where each one lives, its seed, and how far it got.
+
+A study directory holds one run directory per (task, treatment, run index), in the
+layout of :mod:`sdbc_evolution.results`::
+
+    STUDY/
+      study.yaml                the preset the study was started with
+      study_log.jsonl           one line per task of every ``run`` session
+      gate_escape/
+        fit/run_00/ ...         an ``sdbc-evolve`` output directory
+        ns-sd-plus/run_00/ ...
+      .discarded/               runs that could not be resumed, moved aside
+
+Run seeds are independent streams of the study seed: seed(task, treatment, r) is
+the first 63 bits of ``SeedSequence(study_seed, spawn_key=(crc32(task),
+crc32(treatment), r))``. They depend on names, not on positions, so adding a task or
+a treatment to a preset leaves every other run unchanged.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+
+from sdbc_evolution.checkpoint import CheckpointError, load_checkpoint
+from sdbc_evolution.config import ConfigError, ExperimentConfig, Treatment, load_config
+from sdbc_evolution.results import CONFIG_FILE, ResultsDirectory
+from sdbc_evolution.study.presets import StudyPreset
+
+STUDY_FILE = "study.yaml"
+"""The preset a study directory was started with."""
+LOG_FILE = "study_log.jsonl"
+"""Timings of the ``run`` sessions, one JSON object per task and session."""
+DISCARDED_DIR = ".discarded"
+"""Where runs that could not be resumed are moved."""
+TREATMENT_DIRS: dict[Treatment, str] = {
+    Treatment.FIT: "fit",
+    Treatment.NS_TS: "ns-ts",
+    Treatment.NS_SD: "ns-sd",
+    Treatment.NS_SD_PLUS: "ns-sd-plus",
+}
+"""Directory name of each treatment (no '+' in paths)."""
+
+
+def run_seed(study_seed: int, task: str, treatment: Treatment, index: int) -> int:
+    """The seed of run ``index`` of ``treatment`` on ``task`` (see module docstring)."""
+    sequence = np.random.SeedSequence(
+        study_seed,
+        spawn_key=(
+            zlib.crc32(task.encode()),
+            zlib.crc32(Treatment(treatment).value.encode()),
+            index,
+        ),
+    )
+    return int(sequence.generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a study.
+
+    Attributes:
+        task: Task name.
+        treatment: Treatment.
+        index: Run index within (task, treatment), from 0.
+        path: The run directory.
+        config: The run's resolved configuration.
+    """
+
+    task: str
+    treatment: Treatment
+    index: int
+    path: Path
+    config: ExperimentConfig
+
+    @property
+    def name(self) -> str:
+        """``task/treatment/run_NN``: how reports and progress name the run."""
+        return f"{self.task}/{TREATMENT_DIRS[self.treatment]}/run_{self.index:02d}"
+
+    @property
+    def generations(self) -> int:
+        return self.config.resolved_generations
+
+
+def run_directory(root: Path, task: str, treatment: Treatment, index: int) -> Path:
+    return Path(root) / task / TREATMENT_DIRS[treatment] / f"run_{index:02d}"
+
+
+def study_plan(
+    preset: StudyPreset, root: str | Path, tasks: tuple[str, ...] | None = None
+) -> list[RunSpec]:
+    """Every run of the study on ``tasks`` (default: all of the preset's).
+
+    Runs come task by task; within a task, run index by run index, every treatment
+    in turn, so that a study stopped early has about as many runs of each.
+    """
+    chosen = preset.tasks if tasks is None else tasks
+    unknown = [t for t in chosen if t not in preset.tasks]
+    if unknown:
+        raise ValueError(
+            f"task(s) {unknown} not in preset {preset.name!r} "
+            f"(its tasks: {', '.join(preset.tasks)})"
+        )
+    root = Path(root)
+    return [
+        RunSpec(
+            task=task,
+            treatment=treatment,
+            index=index,
+            path=run_directory(root, task, treatment, index),
+            config=preset.experiment_config(
+                task, treatment, run_seed(preset.seed, task, treatment, index)
+            ),
+        )
+        for task in chosen
+        for index in range(preset.runs)
+        for treatment in preset.treatments
+    ]
+
+
+class RunState(str, Enum):
+    """How far a run directory got."""
+
+    NEW = "new"
+    """Nothing there yet: the run starts."""
+    PARTIAL = "partial"
+    """A valid checkpoint before the last generation: the run resumes."""
+    FINISHED = "finished"
+    """Checkpoint at the last generation: the run is skipped."""
+    BROKEN = "broken"
+    """Results without a usable checkpoint: moved aside, the run starts again."""
+
+
+@dataclass(frozen=True)
+class RunStatus:
+    """A run's state, the generations it has, and why it is broken if it is."""
+
+    state: RunState
+    generations_done: int = 0
+    detail: str = ""
+
+
+def run_status(spec: RunSpec) -> RunStatus:
+    """Reads (never changes) the run directory of ``spec``."""
+    results = ResultsDirectory(spec.path, ())
+    if not spec.path.exists() or not results.holds_a_run():
+        return RunStatus(RunState.NEW)
+    try:
+        existing = load_config(spec.path / CONFIG_FILE)
+    except ConfigError as error:
+        return RunStatus(RunState.BROKEN, detail=str(error))
+    if existing.replace(generations=None) != spec.config.replace(generations=None):
+        return RunStatus(
+            RunState.BROKEN,
+            detail=f"{CONFIG_FILE} differs from the preset's configuration of this run",
+        )
+    try:
+        checkpoint = load_checkpoint(results.checkpoint_path, spec.config.to_dict())
+    except CheckpointError as error:
+        return RunStatus(RunState.BROKEN, detail=str(error))
+    if checkpoint.generation >= spec.generations:
+        return RunStatus(RunState.FINISHED, checkpoint.generation)
+    return RunStatus(RunState.PARTIAL, checkpoint.generation)
+
+
+def discard(spec: RunSpec, root: str | Path) -> Path:
+    """Moves a broken run directory under ``STUDY/.discarded`` and returns where."""
+    target_dir = Path(root) / DISCARDED_DIR
+    target_dir.mkdir(parents=True, exist_ok=True)
+    base = spec.name.replace("/", "-")
+    n = 1
+    while (target := target_dir / f"{base}-{n}").exists():
+        n += 1
+    spec.path.rename(target)
+    return target

@@ -1,0 +1,280 @@
+"""Study presets: which tasks, treatments and runs a replication study holds, and
+the sizes of its runs.
+
+A preset is a YAML file (``configs/study/NAME.yaml``) mirroring :class:`StudyPreset`;
+keys left out keep the paper's values (SPEC.md), which are the dataclass defaults
+here and in :mod:`sdbc_evolution.config`. Every run of the study is an
+:class:`~sdbc_evolution.config.ExperimentConfig` built from the preset's
+``experiment`` section (the same schema as an ``sdbc-evolve`` configuration, without
+the keys the study sets itself), the task's generations and task settings, the
+treatment and a seed of its own. Bad presets raise :class:`PresetError` naming the
+key, before any run starts.
+
+Example::
+
+    name: mini
+    runs: 3
+    tasks: [gate_escape]
+    generations: {gate_escape: 20}
+    experiment:
+      ga: {population_size: 20}
+      evaluation: {trials: 3, reevaluation_trials: 10}
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from sdbc_evolution.config import (
+    DEFAULT_GENERATIONS,
+    ConfigError,
+    ExperimentConfig,
+    Treatment,
+    config_from_dict,
+)
+
+PRESET_DIR = Path("configs") / "study"
+"""Where the named presets live, relative to the repository root."""
+PRESET_NAMES = ("smoke", "local", "paper")
+"""The presets shipped with the project."""
+PAPER_RUNS = 20
+"""Runs per treatment and task in the paper."""
+STUDY_KEYS = ("task", "treatment", "seed", "generations", "task_config")
+"""Experiment keys the study sets per run, so a preset's ``experiment`` may not."""
+
+
+class PresetError(ValueError):
+    """A preset that cannot run; the message names the offending key."""
+
+
+@dataclass(frozen=True)
+class StudyPreset:
+    """A replication study: tasks x treatments x runs, and the settings of each run."""
+
+    name: str
+    """Name of the preset (``smoke``, ``local``, ``paper`` or a user's own)."""
+    description: str = ""
+    """What the preset is for, in a sentence or two."""
+    runs: int = PAPER_RUNS
+    """Independent runs per treatment and task."""
+    seed: int = 0
+    """Study seed: every run's seed derives from it, its task, treatment and index."""
+    tasks: tuple[str, ...] = tuple(DEFAULT_GENERATIONS)
+    """Tasks of the study, in the order they run."""
+    treatments: tuple[Treatment, ...] = tuple(Treatment)
+    """Treatments compared on every task."""
+    generations: dict[str, int] = field(default_factory=dict)
+    """Generations per task; a task left out takes the paper's number."""
+    task_config: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Settings of each task that differ from its defaults."""
+    experiment: dict[str, Any] = field(default_factory=dict)
+    """Settings shared by every run (sections ``ga``, ``novelty``, ``evaluation``,
+    ...; an ``sdbc-evolve`` configuration without the keys in :data:`STUDY_KEYS`)."""
+
+    def __post_init__(self) -> None:
+        _check(bool(self.name), "name", "must not be empty")
+        _check(
+            isinstance(self.runs, int) and self.runs >= 1, "runs", "must be at least 1"
+        )
+        _check(
+            isinstance(self.seed, int) and 0 <= self.seed < 2**63,
+            "seed",
+            "must be an integer in [0, 2^63)",
+        )
+        _check(len(self.tasks) >= 1, "tasks", "must name at least one task")
+        _check(len(set(self.tasks)) == len(self.tasks), "tasks", "has duplicates")
+        try:
+            treatments = tuple(Treatment(t) for t in self.treatments)
+        except ValueError as error:
+            raise PresetError(
+                f"treatments: {error}; known: {[t.value for t in Treatment]}"
+            ) from None
+        _check(len(treatments) >= 1, "treatments", "must name at least one")
+        _check(len(set(treatments)) == len(treatments), "treatments", "has duplicates")
+        object.__setattr__(self, "treatments", treatments)
+        for key in ("generations", "task_config"):
+            extra = sorted(set(getattr(self, key)) - set(self.tasks))
+            _check(not extra, key, f"names tasks not in the study: {extra}")
+        for task, generations in self.generations.items():
+            _check(
+                isinstance(generations, int) and generations >= 1,
+                f"generations.{task}",
+                "must be an integer >= 1",
+            )
+        reserved = sorted(set(self.experiment) & set(STUDY_KEYS))
+        _check(
+            not reserved,
+            "experiment",
+            f"may not set {reserved}: the study sets them per run "
+            "(use the preset's tasks, treatments, generations and task_config)",
+        )
+
+    def generations_of(self, task: str) -> int:
+        """Generations of every run on ``task``."""
+        if task in self.generations:
+            return self.generations[task]
+        if task not in DEFAULT_GENERATIONS:
+            raise PresetError(
+                f"generations.{task}: the task has no paper default; set it"
+            )
+        return DEFAULT_GENERATIONS[task]
+
+    def experiment_config(
+        self, task: str, treatment: Treatment, seed: int
+    ) -> ExperimentConfig:
+        """The configuration of one run (validated).
+
+        Raises:
+            PresetError: The preset's settings do not make a valid configuration.
+        """
+        data = {
+            **self.experiment,
+            "task": task,
+            "task_config": dict(self.task_config.get(task, {})),
+            "treatment": Treatment(treatment).value,
+            "generations": self.generations_of(task),
+            "seed": seed,
+        }
+        try:
+            return config_from_dict(data).resolved()
+        except ConfigError as error:
+            raise PresetError(f"preset {self.name!r}, task {task}: {error}") from None
+
+    def validate(self) -> None:
+        """Builds every run's configuration and every task once, so that bad
+        settings fail now, before any run starts."""
+        from sdbc_evolution.experiment import task_spec
+
+        for task in self.tasks:
+            for treatment in self.treatments:
+                config = self.experiment_config(task, treatment, 0)
+            try:
+                task_spec(config).build()
+            except (TypeError, ValueError) as error:
+                raise PresetError(
+                    f"preset {self.name!r}, task_config.{task}: {error}"
+                ) from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (YAML-ready)."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "runs": self.runs,
+            "seed": self.seed,
+            "tasks": list(self.tasks),
+            "treatments": [t.value for t in self.treatments],
+            "generations": {t: self.generations_of(t) for t in self.tasks},
+            "task_config": {t: dict(c) for t, c in self.task_config.items()},
+            "experiment": _plain(self.experiment),
+        }
+
+    def sizes(self) -> dict[str, Any]:
+        """The sizes that decide a study's cost, as a reader wants them."""
+        config = self.experiment_config(self.tasks[0], self.treatments[0], 0)
+        return {
+            "runs per treatment and task": self.runs,
+            "treatments": len(self.treatments),
+            "population": config.ga.population_size,
+            "trials per individual": config.evaluation.trials,
+            "re-evaluation trials": config.evaluation.reevaluation_trials,
+            "generations": {t: self.generations_of(t) for t in self.tasks},
+        }
+
+
+def _check(ok: bool, key: str, message: str) -> None:
+    if not ok:
+        raise PresetError(f"{key}: {message}")
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def preset_from_dict(data: Any, where: str = "preset") -> StudyPreset:
+    """Builds and validates a preset from plain data (a parsed YAML file)."""
+    if not isinstance(data, dict):
+        raise PresetError(f"{where}: expected a mapping, got {data!r}")
+    names = {f.name for f in dataclasses.fields(StudyPreset)}
+    unknown = sorted(str(k) for k in data if k not in names)
+    if unknown:
+        raise PresetError(f"{where}: unknown key(s) {unknown}; known: {sorted(names)}")
+    values = dict(data)
+    for key in ("tasks", "treatments"):
+        if key in values:
+            if not isinstance(values[key], list) or not all(
+                isinstance(v, str) for v in values[key]
+            ):
+                raise PresetError(f"{where}: {key}: expected a list of names")
+            values[key] = tuple(values[key])
+    for key in ("generations", "task_config", "experiment"):
+        if key in values and not isinstance(values[key], dict):
+            raise PresetError(f"{where}: {key}: expected a mapping")
+    for task, settings in values.get("task_config", {}).items():
+        if not isinstance(settings, dict):
+            raise PresetError(f"{where}: task_config.{task}: expected a mapping")
+    for key in ("name", "description"):
+        if key in values and not isinstance(values[key], str):
+            raise PresetError(f"{where}: {key}: expected a string")
+    try:
+        preset = StudyPreset(**values)
+    except PresetError as error:
+        raise PresetError(f"{where}: {error}") from None
+    except TypeError as error:
+        raise PresetError(f"{where}: {error}") from None
+    preset.validate()
+    return preset
+
+
+def load_preset_file(path: str | Path) -> StudyPreset:
+    """Reads a preset from a YAML file (its ``name`` defaults to the file's stem)."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise PresetError(f"cannot read preset {path}: {error}") from None
+    except yaml.YAMLError as error:
+        raise PresetError(f"{path} is not valid YAML: {error}") from None
+    if isinstance(data, dict):
+        data.setdefault("name", path.stem)
+    return preset_from_dict(data, str(path))
+
+
+def preset_directory(start: Path | None = None) -> Path:
+    """``configs/study`` of the repository holding this package (found upwards)."""
+    here = (start or Path(__file__)).resolve()
+    for parent in here.parents:
+        candidate = parent / PRESET_DIR
+        if candidate.is_dir():
+            return candidate
+    raise PresetError(
+        f"no {PRESET_DIR} directory above {here}: pass the preset as a YAML file path"
+    )
+
+
+def load_preset(name_or_path: str | Path) -> StudyPreset:
+    """A named preset (``smoke``, ``local``, ``paper``) or a preset YAML file."""
+    text = str(name_or_path)
+    if text in PRESET_NAMES or not (text.endswith((".yaml", ".yml"))):
+        path = preset_directory() / f"{text}.yaml"
+        if not path.is_file():
+            raise PresetError(
+                f"unknown preset {text!r}; known: {', '.join(PRESET_NAMES)} "
+                "(or a path to a YAML file)"
+            )
+        return load_preset_file(path)
+    return load_preset_file(Path(text))
+
+
+def dump_preset(preset: StudyPreset) -> str:
+    """The preset as YAML text that :func:`preset_from_dict` reads back."""
+    return yaml.safe_dump(preset.to_dict(), sort_keys=False)

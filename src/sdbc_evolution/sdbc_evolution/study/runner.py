@@ -1,0 +1,548 @@
+"""The study runner: every run of a study, resumable, with one progress display.
+
+Runs go task by task (so a task's wall time is measured on its own). Finished runs
+are skipped, interrupted runs resume from their checkpoint (the experiment runner's
+bit-identical ``--resume``), and a run directory that holds results but no usable
+checkpoint is moved under ``STUDY/.discarded`` and started again; each of these is
+said by name.
+
+Where the work goes:
+
+- **local** (default): up to ``workers`` runs at once (default: every core), each in
+  a process of its own evaluating in process. A study is many independent runs, so
+  this keeps every core busy through the serial parts of a generation (ranking,
+  mutual information, output) that a pool shared by one run would leave idle.
+  ``workers=1`` runs everything in this process.
+- **Dask** (``scheduler``): one run after the other, each generation's trials spread
+  over the cluster by :class:`~sdbc_evolution.evaluators.DaskEvaluator`.
+
+Each run directory gets ``study_run.json``: how each stretch of its generations was
+run (evaluator, workers per run, runs side by side), which the cost analysis needs
+to turn seconds into per-worker rates.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import signal
+import sys
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from sdbc_evolution.evaluators import (
+    DEFAULT_CONNECT_TIMEOUT,
+    Evaluator,
+    LocalEvaluator,
+    make_evaluator,
+)
+from sdbc_evolution.experiment import Experiment, task_spec
+from sdbc_evolution.results import atomic_write_bytes
+from sdbc_evolution.study.plan import (
+    LOG_FILE,
+    STUDY_FILE,
+    RunSpec,
+    RunState,
+    discard,
+    run_status,
+    study_plan,
+)
+from sdbc_evolution.study.presets import StudyPreset, dump_preset, load_preset_file
+
+EXECUTION_FILE = "study_run.json"
+"""Per run directory: how its generations were run (see module docstring)."""
+POLL_SECONDS = 0.5
+"""How often the parent looks at its child processes between messages."""
+
+
+class StudyError(RuntimeError):
+    """A study that cannot start; the message says why."""
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where runs go.
+
+    Attributes:
+        workers: Local runs side by side (None: every core); ignored with Dask.
+        scheduler: Address of a Dask scheduler, or None for local.
+        connect_timeout: Seconds to wait for the scheduler.
+    """
+
+    workers: int | None = None
+    scheduler: str | None = None
+    connect_timeout: float = DEFAULT_CONNECT_TIMEOUT
+
+    def __post_init__(self) -> None:
+        if self.workers is not None and self.workers < 1:
+            raise ValueError(f"workers must be at least 1, got {self.workers}")
+        if self.workers is not None and self.scheduler is not None:
+            raise ValueError(
+                "workers and scheduler exclude each other: the Dask cluster "
+                "decides its own workers"
+            )
+
+    @property
+    def concurrent_runs(self) -> int:
+        if self.scheduler is not None:
+            return 1
+        return self.workers if self.workers is not None else (os.cpu_count() or 1)
+
+
+@dataclass
+class RunOutcome:
+    """What became of one run in a session."""
+
+    name: str
+    generations_done: int
+    finished: bool
+    error: str = ""
+    interrupted: bool = False
+
+
+@dataclass
+class StudyOutcome:
+    """What a ``run`` session did.
+
+    Attributes:
+        skipped: Runs already finished before the session.
+        ran: Runs this session worked on.
+        discarded: (run name, where it went, why) of runs moved aside.
+        failed: Runs that stopped on an error.
+        interrupted: True if the session was stopped (Ctrl-C).
+        task_seconds: Wall time per task in this session.
+    """
+
+    skipped: list[str] = field(default_factory=list)
+    ran: list[RunOutcome] = field(default_factory=list)
+    discarded: list[tuple[str, Path, str]] = field(default_factory=list)
+    failed: list[RunOutcome] = field(default_factory=list)
+    interrupted: bool = False
+    task_seconds: dict[str, float] = field(default_factory=dict)
+
+
+Say = Callable[[str], None]
+
+
+def prepare_study_directory(preset: StudyPreset, root: Path) -> None:
+    """Creates ``root`` with ``study.yaml``, or checks that it holds this preset."""
+    root.mkdir(parents=True, exist_ok=True)
+    path = root / STUDY_FILE
+    if path.exists():
+        try:
+            existing = load_preset_file(path)
+        except ValueError as error:
+            raise StudyError(f"{path} cannot be read: {error}") from None
+        if existing.to_dict() != preset.to_dict():
+            raise StudyError(
+                f"{root} holds a study of another preset ({existing.name!r}, or the "
+                f"same name with other settings): choose another output directory"
+            )
+        return
+    atomic_write_bytes(path, dump_preset(preset).encode())
+
+
+def run_study(
+    preset: StudyPreset,
+    root: str | Path,
+    tasks: Sequence[str] | None = None,
+    execution: Execution | None = None,
+    quiet: bool = False,
+    say: Say | None = None,
+    command: Sequence[str] | None = None,
+) -> StudyOutcome:
+    """Runs (or resumes) the study ``preset`` in ``root``.
+
+    Args:
+        preset: The study.
+        root: The study directory.
+        tasks: Tasks to run now (default: all of the preset's).
+        execution: Local or Dask, and how many workers.
+        quiet: No progress bar.
+        say: Where messages go (default: stderr).
+        command: The command line, for the study log.
+
+    Raises:
+        StudyError: The directory holds another study.
+        ValueError: A task not in the preset.
+    """
+    execution = execution or Execution()
+    say = say or (lambda text: print(text, file=sys.stderr))
+    root = Path(root)
+    plan = study_plan(preset, root, tuple(tasks) if tasks is not None else None)
+    prepare_study_directory(preset, root)
+    outcome = StudyOutcome()
+    todo: list[tuple[RunSpec, int]] = []
+    for spec in plan:
+        status = run_status(spec)
+        if status.state is RunState.FINISHED:
+            outcome.skipped.append(spec.name)
+            continue
+        if status.state is RunState.BROKEN:
+            where = discard(spec, root)
+            outcome.discarded.append((spec.name, where, status.detail))
+            say(f"{spec.name}: cannot resume ({status.detail}); moved to {where}")
+            status = run_status(spec)
+        todo.append((spec, status.generations_done))
+    if outcome.skipped:
+        say(f"{len(outcome.skipped)} of {len(plan)} runs already finished: skipped")
+    progress = _Progress(plan, todo, preset.name, quiet)
+    try:
+        for task in dict.fromkeys(spec.task for spec in plan):
+            task_todo = [(s, done) for s, done in todo if s.task == task]
+            if not task_todo:
+                continue
+            started = time.time()
+            results: list[RunOutcome] = []
+            interrupted = True  # unless the runs come back
+            try:
+                if execution.scheduler is not None:
+                    results = _run_dask(task_todo, execution, progress)
+                elif execution.concurrent_runs == 1:
+                    results = _run_in_process(task_todo, progress)
+                else:
+                    results = _run_processes(task_todo, execution, progress)
+                interrupted = any(r.interrupted for r in results)
+            finally:
+                elapsed = time.time() - started
+                outcome.task_seconds[task] = elapsed
+                _log_session(
+                    root,
+                    {
+                        "task": task,
+                        "preset": preset.name,
+                        "command": list(command) if command is not None else None,
+                        "started": datetime.fromtimestamp(started, UTC).isoformat(
+                            timespec="seconds"
+                        ),
+                        "elapsed_s": round(elapsed, 3),
+                        "evaluator": "dask" if execution.scheduler else "local",
+                        "concurrent_runs": execution.concurrent_runs,
+                        "cpu_count": os.cpu_count(),
+                        "runs": sum(s.task == task for s in plan),
+                        "finished_before": sum(
+                            n.startswith(f"{task}/") for n in outcome.skipped
+                        ),
+                        "worked_on": len(results),
+                        "finished_now": sum(r.finished for r in results),
+                        "failed": [r.name for r in results if r.error],
+                        "interrupted": interrupted,
+                    },
+                )
+            outcome.ran.extend(results)
+            for result in results:
+                if result.error:
+                    outcome.failed.append(result)
+                    say(f"{result.name}: failed:\n{result.error}")
+            if any(r.interrupted for r in results):
+                outcome.interrupted = True
+                break
+    except KeyboardInterrupt:
+        outcome.interrupted = True
+    finally:
+        progress.close()
+    return outcome
+
+
+class _Progress:
+    """One bar over every generation of the session, with the runs done and the
+    runs in progress (and their generation) after it; tqdm's estimate of the time
+    left assumes the generations to come cost what the last ones did."""
+
+    def __init__(
+        self,
+        plan: list[RunSpec],
+        todo: list[tuple[RunSpec, int]],
+        name: str,
+        quiet: bool,
+    ) -> None:
+        from tqdm import tqdm
+
+        self.runs_total = len(plan)
+        self.runs_done = self.runs_total - len(todo)
+        total = sum(spec.generations for spec in plan)
+        pending = {spec.name for spec, _ in todo}
+        done = sum(s.generations for s in plan if s.name not in pending) + sum(
+            d for _, d in todo
+        )
+        self.active: dict[str, str] = {}
+        self.bar = tqdm(
+            total=total,
+            initial=done,
+            desc=f"study {name}",
+            unit="gen",
+            disable=quiet,
+            dynamic_ncols=True,
+        )
+        self._refresh()
+
+    def generation(self, spec_name: str, done: int, total: int) -> None:
+        self.active[spec_name] = f"{done}/{total}"
+        self._refresh(now=False)
+        self.bar.update(1)
+
+    def started(self, spec_name: str, done: int, total: int) -> None:
+        self.active[spec_name] = f"{done}/{total}"
+        self._refresh()
+
+    def ended(self, spec_name: str, finished: bool) -> None:
+        self.active.pop(spec_name, None)
+        if finished:
+            self.runs_done += 1
+        self._refresh()
+
+    def _refresh(self, now: bool = True) -> None:
+        running = ", ".join(f"{n} {g}" for n, g in self.active.items())
+        self.bar.set_postfix_str(
+            f"runs {self.runs_done}/{self.runs_total}"
+            + (f" | {running}" if running else ""),
+            refresh=now,
+        )
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def execute_run(
+    spec: RunSpec,
+    evaluator: Evaluator,
+    on_generation: Callable[[int], None],
+    execution_note: dict[str, Any],
+) -> RunOutcome:
+    """Creates or resumes one run and takes it to its last generation.
+
+    A Ctrl-C stops it between or inside a generation (the checkpoint is atomic, so
+    the run resumes where it stopped) and is reported as ``interrupted``.
+    """
+    if run_status(spec).state is RunState.PARTIAL:
+        experiment = Experiment.resume(spec.config, spec.path, evaluator)
+    else:
+        experiment = Experiment.create(spec.config, spec.path, evaluator)
+    first = experiment.state.generation
+    started = time.time()
+    outcome = RunOutcome(spec.name, first, finished=False)
+    try:
+        experiment.run(lambda record: on_generation(record.generation + 1))
+        outcome.finished = True
+    except KeyboardInterrupt:
+        outcome.interrupted = True
+    finally:
+        outcome.generations_done = experiment.state.generation
+        _note_execution(spec.path, first, outcome, started, execution_note)
+    return outcome
+
+
+def _note_execution(
+    path: Path,
+    first: int,
+    outcome: RunOutcome,
+    started: float,
+    note: dict[str, Any],
+) -> None:
+    file = path / EXECUTION_FILE
+    try:
+        segments = json.loads(file.read_text()) if file.exists() else []
+    except (OSError, ValueError):
+        segments = []
+    if outcome.generations_done > first:
+        segments.append(
+            {
+                "from_generation": first,
+                "to_generation": outcome.generations_done,
+                "elapsed_s": time.time() - started,
+                **note,
+            }
+        )
+    atomic_write_bytes(file, json.dumps(segments, indent=1).encode())
+
+
+def _note(execution: Execution, workers: int) -> dict[str, Any]:
+    return {
+        "evaluator": "dask" if execution.scheduler is not None else "local",
+        "workers_per_run": workers,
+        "concurrent_runs": execution.concurrent_runs,
+        "cpu_count": os.cpu_count(),
+    }
+
+
+def _run_in_process(
+    todo: list[tuple[RunSpec, int]], progress: _Progress
+) -> list[RunOutcome]:
+    results = []
+    execution = Execution(workers=1)
+    for spec, done in todo:
+        progress.started(spec.name, done, spec.generations)
+        with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
+            try:
+                result = execute_run(
+                    spec,
+                    evaluator,
+                    lambda g, s=spec: progress.generation(s.name, g, s.generations),
+                    _note(execution, 1),
+                )
+            except Exception:
+                result = RunOutcome(spec.name, done, False, traceback.format_exc())
+        progress.ended(spec.name, result.finished)
+        results.append(result)
+        if result.interrupted:
+            break
+    return results
+
+
+def _run_dask(
+    todo: list[tuple[RunSpec, int]], execution: Execution, progress: _Progress
+) -> list[RunOutcome]:
+    results = []
+    spec0 = todo[0][0]
+    with make_evaluator(
+        task_spec(spec0.config),
+        scheduler=execution.scheduler,
+        timeout=execution.connect_timeout,
+    ) as evaluator:
+        note = _note(execution, evaluator.workers)
+        for spec, done in todo:
+            progress.started(spec.name, done, spec.generations)
+            try:
+                result = execute_run(
+                    spec,
+                    evaluator,
+                    lambda g, s=spec: progress.generation(s.name, g, s.generations),
+                    note,
+                )
+            except Exception:
+                result = RunOutcome(spec.name, done, False, traceback.format_exc())
+            progress.ended(spec.name, result.finished)
+            results.append(result)
+            if result.interrupted:
+                break
+    return results
+
+
+def _interrupt_once(signum: int, frame: Any) -> None:
+    # The terminal and the parent may both send SIGINT: stop once, then let the
+    # run write its outputs in peace.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
+def _child(spec: RunSpec, note: dict[str, Any], messages: Any) -> None:
+    """One run in a process of its own; everything it says goes to ``messages``."""
+    from threadpoolctl import threadpool_limits
+
+    signal.signal(signal.SIGINT, _interrupt_once)
+    # One run per core: BLAS threads in k-means would only oversubscribe.
+    threadpool_limits(1)
+    try:
+        with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
+            result = execute_run(
+                spec,
+                evaluator,
+                lambda g: messages.put(("generation", spec.name, g)),
+                note,
+            )
+    except KeyboardInterrupt:
+        result = RunOutcome(
+            spec.name, run_status(spec).generations_done, False, interrupted=True
+        )
+    except Exception:
+        result = RunOutcome(
+            spec.name, run_status(spec).generations_done, False, traceback.format_exc()
+        )
+    messages.put(("done", spec.name, result))
+
+
+class _Children:
+    """Runs in child processes, at most ``slots`` at once, reporting to a queue."""
+
+    def __init__(self, slots: int, note: dict[str, Any], progress: _Progress) -> None:
+        self.context = get_context("forkserver")
+        self.messages = self.context.Queue()
+        self.slots = slots
+        self.note = note
+        self.progress = progress
+        self.running: dict[str, tuple[Any, RunSpec]] = {}
+        self.results: dict[str, RunOutcome] = {}
+        self.stopping = False
+
+    def start(self, spec: RunSpec, done: int) -> None:
+        process = self.context.Process(
+            target=_child, args=(spec, self.note, self.messages), name=spec.name
+        )
+        process.start()
+        self.running[spec.name] = (process, spec)
+        self.progress.started(spec.name, done, spec.generations)
+
+    def poll(self) -> None:
+        """Handles one message, or looks for children that died without one."""
+        try:
+            kind, name, payload = self.messages.get(timeout=POLL_SECONDS)
+        except queue.Empty:
+            for name, (process, spec) in list(self.running.items()):
+                if not process.is_alive():
+                    process.join()
+                    del self.running[name]
+                    self.results[name] = RunOutcome(
+                        name,
+                        run_status(spec).generations_done,
+                        False,
+                        f"the run's process ended with exit code {process.exitcode} "
+                        "and no report",
+                    )
+                    self.progress.ended(name, False)
+            return
+        if kind == "generation":
+            spec = self.running[name][1]
+            self.progress.generation(name, payload, spec.generations)
+        elif kind == "done":
+            process, _ = self.running.pop(name)
+            process.join()
+            self.results[name] = payload
+            self.progress.ended(name, payload.finished)
+            self.stopping = self.stopping or payload.interrupted
+
+    def interrupt(self) -> None:
+        """Asks every running child to stop (they checkpoint atomically)."""
+        self.stopping = True
+        for process, _ in self.running.values():
+            if process.is_alive() and process.pid is not None:
+                os.kill(process.pid, signal.SIGINT)
+
+
+def _run_processes(
+    todo: list[tuple[RunSpec, int]], execution: Execution, progress: _Progress
+) -> list[RunOutcome]:
+    children = _Children(execution.concurrent_runs, _note(execution, 1), progress)
+    waiting = list(todo)
+    try:
+        while waiting or children.running:
+            try:
+                while (
+                    waiting
+                    and not children.stopping
+                    and len(children.running) < children.slots
+                ):
+                    children.start(*waiting.pop(0))
+                children.poll()
+            except KeyboardInterrupt:
+                children.interrupt()
+            if children.stopping:
+                waiting.clear()
+    finally:
+        for process, _ in children.running.values():
+            process.terminate()
+            process.join()
+        children.messages.close()
+    return list(children.results.values())
+
+
+def _log_session(root: Path, entry: dict[str, Any]) -> None:
+    """Appends one task's timings of this session to the study log."""
+    with open(root / LOG_FILE, "a") as f:
+        f.write(json.dumps(entry) + "\n")

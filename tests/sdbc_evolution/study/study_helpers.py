@@ -1,0 +1,51 @@
+"""Helpers of the study tests: a tiny preset on the real engine, run contents."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from sdbc_evolution.results import GENERATIONS_FILE, TIME_COLUMNS
+from sdbc_evolution.study.presets import StudyPreset, preset_from_dict
+
+TINY = {
+    "name": "tiny",
+    "description": "two treatments, two runs, two generations of six",
+    "runs": 2,
+    "seed": 5,
+    "tasks": ["gate_escape"],
+    "treatments": ["fit", "ns-sd+"],
+    "generations": {"gate_escape": 2},
+    "task_config": {"gate_escape": {"max_steps": 60}},
+    "experiment": {
+        "ga": {"population_size": 6, "elites": 1, "tournament_size": 2},
+        "novelty": {"k": 3},
+        "evaluation": {"trials": 2, "reevaluation_trials": 2},
+    },
+}
+
+
+def tiny_preset() -> StudyPreset:
+    """The tiny study: gate escape, Fit and NS-SD+, 2 runs of 2 generations."""
+    return preset_from_dict(TINY)
+
+
+def _exact(array: np.ndarray) -> tuple[str, tuple[int, ...], bytes]:
+    # Bytes, so that NaN equals NaN and -0.0 differs from 0.0.
+    return (array.dtype.str, array.shape, array.tobytes())
+
+
+def run_contents(run: Path) -> dict[str, object]:
+    """A run directory's results without its timings: ``generations.csv`` rows
+    with the time columns dropped, and every array of every individuals file."""
+    with open(run / GENERATIONS_FILE, newline="") as f:
+        rows = list(csv.reader(f))
+    keep = [i for i, name in enumerate(rows[0]) if name not in TIME_COLUMNS]
+    out: dict[str, object] = {"csv": [[r[i] for i in keep] for r in rows]}
+    for file in sorted((run / "individuals").glob("*.npz")):
+        with np.load(file) as data:
+            for key in data.files:
+                out[f"{file.name}:{key}"] = _exact(data[key])
+    out["best_genomes"] = _exact(np.load(run / "best_genomes.npy"))
+    return out

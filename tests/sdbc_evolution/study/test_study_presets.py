@@ -1,0 +1,105 @@
+"""Study presets: the shipped ones, and bad presets named before any run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from sdbc_evolution.config import DEFAULT_GENERATIONS, ExperimentConfig, Treatment
+from sdbc_evolution.study.presets import (
+    PRESET_NAMES,
+    PresetError,
+    StudyPreset,
+    dump_preset,
+    load_preset,
+    load_preset_file,
+    preset_from_dict,
+)
+from study_helpers import TINY
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_shipped_presets_load_and_hold_every_task_and_treatment(name: str) -> None:
+    preset = load_preset(name)
+    assert preset.name == name
+    assert set(preset.tasks) == set(DEFAULT_GENERATIONS)
+    assert set(preset.treatments) == set(Treatment)
+    assert preset.description
+
+
+def test_paper_preset_is_spec_settings() -> None:
+    paper = load_preset("paper")
+    assert paper.runs == 20
+    for task, generations in DEFAULT_GENERATIONS.items():
+        for treatment in Treatment:
+            config = paper.experiment_config(task, treatment, 7)
+            assert config == ExperimentConfig(
+                task=task, treatment=treatment, seed=7, generations=generations
+            )
+
+
+def test_local_preset_has_at_least_ten_runs_and_smoke_two() -> None:
+    assert load_preset("local").runs >= 10
+    assert load_preset("smoke").runs == 2
+
+
+def test_preset_round_trips_through_yaml(tmp_path: Path) -> None:
+    preset = preset_from_dict(TINY)
+    path = tmp_path / "tiny.yaml"
+    path.write_text(dump_preset(preset))
+    assert load_preset_file(path).to_dict() == preset.to_dict()
+
+
+def test_run_configuration_takes_task_generations_and_task_settings() -> None:
+    preset = preset_from_dict(TINY)
+    config = preset.experiment_config("gate_escape", Treatment.FIT, 3)
+    assert config.generations == 2
+    assert config.task_config == {"max_steps": 60}
+    assert config.ga.population_size == 6
+    assert config.treatment is Treatment.FIT and config.seed == 3
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"runs": 0}, "runs"),
+        ({"colour": "red"}, "unknown key"),
+        ({"treatments": ["fit", "ns-xx"]}, "treatments"),
+        ({"tasks": []}, "tasks"),
+        ({"tasks": ["gate_escape", "gate_escape"]}, "duplicates"),
+        ({"generations": {"predator_prey": 5}}, "generations"),
+        ({"generations": {"gate_escape": 0}}, "generations.gate_escape"),
+        ({"experiment": {"seed": 3}}, "may not set"),
+        ({"experiment": {"ga": {"population_size": 1}}}, "ga.population_size"),
+        ({"experiment": {"ga": {"populaton_size": 10}}}, "unknown key"),
+        ({"task_config": {"gate_escape": {"max_stepz": 3}}}, "max_stepz"),
+        (
+            {
+                "tasks": ["no_such_task"],
+                "generations": {"no_such_task": 3},
+                "task_config": {},
+            },
+            "unknown task 'no_such_task'",
+        ),
+        ({"seed": -1}, "seed"),
+    ],
+)
+def test_bad_presets_are_named(change: dict, message: str) -> None:
+    with pytest.raises(PresetError, match=message):
+        preset_from_dict({**TINY, **change})
+
+
+def test_unknown_preset_name_and_unreadable_file(tmp_path: Path) -> None:
+    with pytest.raises(PresetError, match="unknown preset"):
+        load_preset("huge")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("runs: [1,\n")
+    with pytest.raises(PresetError, match="not valid YAML"):
+        load_preset(str(bad))
+    with pytest.raises(PresetError, match="cannot read"):
+        load_preset(str(tmp_path / "absent.yaml"))
+
+
+def test_defaults_are_the_paper_study() -> None:
+    preset = StudyPreset(name="x")
+    assert preset.runs == 20 and preset.sizes()["population"] == 200

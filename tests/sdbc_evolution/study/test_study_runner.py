@@ -1,0 +1,247 @@
+"""The study runner: seeds, resume, skipping, broken runs, and where runs go."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from sdbc_evolution.config import Treatment
+from sdbc_evolution.evaluators import LocalEvaluator
+from sdbc_evolution.experiment import Experiment, task_spec
+from sdbc_evolution.results import read_generations
+from sdbc_evolution.study.plan import (
+    DISCARDED_DIR,
+    LOG_FILE,
+    STUDY_FILE,
+    RunState,
+    run_seed,
+    run_status,
+    study_plan,
+)
+from sdbc_evolution.study.presets import (
+    StudyPreset,
+    load_preset_file,
+    preset_from_dict,
+)
+from sdbc_evolution.study.runner import (
+    EXECUTION_FILE,
+    Execution,
+    StudyError,
+    run_study,
+)
+from study_helpers import TINY, run_contents
+
+
+def files(root: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(root)): p.read_bytes()
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and p.name != LOG_FILE
+    }
+
+
+def test_plan_interleaves_treatments_and_seeds_depend_on_names(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    plan = study_plan(tiny_preset, tmp_path)
+    assert [s.name for s in plan] == [
+        "gate_escape/fit/run_00",
+        "gate_escape/ns-sd-plus/run_00",
+        "gate_escape/fit/run_01",
+        "gate_escape/ns-sd-plus/run_01",
+    ]
+    seeds = [s.config.seed for s in plan]
+    assert len(set(seeds)) == len(seeds)
+    assert all(0 <= s < 2**63 for s in seeds)
+    # Another task, another treatment: the existing runs keep their seeds.
+    bigger = preset_from_dict(
+        {
+            **TINY,
+            "tasks": ["resource_sharing", "gate_escape"],
+            "treatments": ["ns-ts", "fit", "ns-sd+"],
+        }
+    )
+    again = {s.name: s.config.seed for s in study_plan(bigger, tmp_path)}
+    assert all(again[s.name] == s.config.seed for s in plan)
+    assert run_seed(5, "gate_escape", Treatment.FIT, 0) != run_seed(
+        6, "gate_escape", Treatment.FIT, 0
+    )
+    with pytest.raises(ValueError, match="not in preset"):
+        study_plan(tiny_preset, tmp_path, ("predator_prey",))
+
+
+def test_a_second_run_skips_finished_runs_and_touches_nothing(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    root = tmp_path / "study"
+    said: list[str] = []
+    first = run_study(
+        tiny_preset, root, execution=Execution(workers=1), quiet=True, say=said.append
+    )
+    assert not first.failed and not first.interrupted and not first.skipped
+    assert sorted(r.name for r in first.ran if r.finished) == sorted(
+        s.name for s in study_plan(tiny_preset, root)
+    )
+    for spec in study_plan(tiny_preset, root):
+        assert run_status(spec).state is RunState.FINISHED
+        assert len(read_generations(spec.path)["generation"]) == 2
+    before = files(root)
+    second = run_study(
+        tiny_preset, root, execution=Execution(workers=1), quiet=True, say=said.append
+    )
+    assert len(second.skipped) == 4 and not second.ran
+    assert "4 of 4 runs already finished: skipped" in said
+    assert files(root) == before
+    log = [json.loads(line) for line in (root / LOG_FILE).read_text().splitlines()]
+    assert [e["finished_now"] for e in log] == [4]  # nothing to log the second time
+
+
+def test_an_interrupted_run_resumes_to_the_same_results(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    straight = tmp_path / "straight"
+    run_study(tiny_preset, straight, execution=Execution(workers=1), quiet=True)
+    resumed = tmp_path / "resumed"
+    spec = study_plan(tiny_preset, resumed)[1]
+    with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
+        Experiment.create(spec.config, spec.path, evaluator).step()
+    status = run_status(spec)
+    assert status.state is RunState.PARTIAL and status.generations_done == 1
+    outcome = run_study(
+        tiny_preset, resumed, execution=Execution(workers=1), quiet=True
+    )
+    resumed_run = next(r for r in outcome.ran if r.name == spec.name)
+    assert resumed_run.finished and resumed_run.generations_done == 2
+    for a, b in zip(
+        study_plan(tiny_preset, straight), study_plan(tiny_preset, resumed), strict=True
+    ):
+        assert run_contents(a.path) == run_contents(b.path), a.name
+    segments = json.loads((spec.path / EXECUTION_FILE).read_text())
+    assert [(s["from_generation"], s["to_generation"]) for s in segments] == [(1, 2)]
+
+
+def test_a_run_without_usable_checkpoint_is_moved_aside_and_run_again(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    root = tmp_path / "study"
+    run_study(tiny_preset, root, execution=Execution(workers=1), quiet=True)
+    spec = study_plan(tiny_preset, root)[0]
+    (spec.path / "checkpoint.npz").write_bytes(b"PK\x03\x04 not a zip")
+    said: list[str] = []
+    outcome = run_study(
+        tiny_preset, root, execution=Execution(workers=1), quiet=True, say=said.append
+    )
+    assert [name for name, _, _ in outcome.discarded] == [spec.name]
+    moved = outcome.discarded[0][1]
+    assert moved.parent == root / DISCARDED_DIR and (moved / "config.yaml").is_file()
+    assert any(spec.name in line and "cannot resume" in line for line in said)
+    assert run_status(spec).state is RunState.FINISHED
+    assert len(outcome.skipped) == 3
+
+
+def test_a_directory_of_another_study_is_refused(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    root = tmp_path / "study"
+    root.mkdir()
+    other = preset_from_dict({**TINY, "runs": 3})
+    (root / STUDY_FILE).write_text("name: other\nruns: 1\n")
+    with pytest.raises(StudyError, match="another preset"):
+        run_study(other, root, execution=Execution(workers=1), quiet=True)
+
+
+def test_runs_side_by_side_and_on_dask_equal_runs_in_process(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    from distributed import LocalCluster
+
+    one = tmp_path / "one"
+    run_study(tiny_preset, one, execution=Execution(workers=1), quiet=True)
+    two = tmp_path / "two"
+    outcome = run_study(tiny_preset, two, execution=Execution(workers=2), quiet=True)
+    assert not outcome.failed and all(r.finished for r in outcome.ran)
+    dask = tmp_path / "dask"
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        run_study(
+            tiny_preset,
+            dask,
+            execution=Execution(scheduler=cluster.scheduler_address),
+            quiet=True,
+        )
+    for a, b, c in zip(
+        study_plan(tiny_preset, one),
+        study_plan(tiny_preset, two),
+        study_plan(tiny_preset, dask),
+        strict=True,
+    ):
+        assert run_contents(a.path) == run_contents(b.path) == run_contents(c.path)
+        local = json.loads((b.path / EXECUTION_FILE).read_text())[0]
+        assert local["evaluator"] == "local" and local["workers_per_run"] == 1
+        assert local["concurrent_runs"] == 2
+        remote = json.loads((c.path / EXECUTION_FILE).read_text())[0]
+        assert remote["evaluator"] == "dask" and remote["workers_per_run"] == 1
+
+
+def test_bad_execution_settings_are_refused() -> None:
+    with pytest.raises(ValueError, match="at least 1"):
+        Execution(workers=0)
+    with pytest.raises(ValueError, match="exclude each other"):
+        Execution(workers=2, scheduler="tcp://127.0.0.1:8786")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("whole_group", [True, False], ids=["ctrl-c", "parent-only"])
+def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
+    tmp_path: Path, whole_group: bool
+) -> None:
+    preset = tmp_path / "longer.yaml"
+    preset.write_text(
+        yaml.safe_dump(
+            {
+                **TINY,
+                "generations": {"gate_escape": 12},
+                "task_config": {"gate_escape": {"max_steps": 100}},
+            }
+        )
+    )
+    root = tmp_path / "study"
+    command = [
+        sys.executable, "-m", "sdbc_evolution.study", "run", "--preset", str(preset),
+        "--out", str(root), "--workers", "2", "--quiet",
+    ]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    process = subprocess.Popen(
+        command, env=env, start_new_session=True, stderr=subprocess.PIPE, text=True
+    )
+    plan = study_plan(load_preset_file(preset), root)
+    deadline = time.monotonic() + 120
+    while not any(run_status(s).generations_done >= 1 for s in plan):
+        assert process.poll() is None, process.stderr.read()
+        assert time.monotonic() < deadline, "no generation within two minutes"
+        time.sleep(0.2)
+    if whole_group:
+        os.killpg(process.pid, signal.SIGINT)
+    else:
+        process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert "interrupted; resume with the same command" in stderr
+    states = [run_status(s).state for s in plan]
+    assert RunState.FINISHED not in states[2:]  # the later runs never started
+    assert subprocess.run(command, env=env, timeout=600).returncode == 0
+    assert all(run_status(s).state is RunState.FINISHED for s in plan)
+    reference = tmp_path / "reference"
+    run_study(
+        load_preset_file(preset), reference, execution=Execution(workers=1), quiet=True
+    )
+    for a, b in zip(plan, study_plan(load_preset_file(preset), reference), strict=True):
+        assert run_contents(a.path) == run_contents(b.path), a.name
