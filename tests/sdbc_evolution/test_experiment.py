@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TOY_INFO, ToyEvaluator, assert_same_run, snapshot
+from evolution_helpers import TOY_INFO, ToyEvaluator, assert_same_run, snapshot
 from sdbc_evolution.checkpoint import CheckpointError
 from sdbc_evolution.config import Treatment, config_from_dict
 from sdbc_evolution.experiment import Experiment, ExperimentError

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import assert_same_run
+from evolution_helpers import assert_same_run
 from sdbc_evolution.config import config_from_dict
 from sdbc_evolution.evaluators import DaskEvaluator, LocalEvaluator
 from sdbc_evolution.experiment import Experiment, task_spec

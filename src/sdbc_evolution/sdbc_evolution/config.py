@@ -247,7 +247,7 @@ class ExperimentConfig:
 
 def quickstart_config() -> ExperimentConfig:
     """The small default experiment of the command line: NS-SD+ on gate escape,
-    sized to finish in about two minutes on two cores (SPEC.md's settings
+    sized to finish in two to three minutes on two cores (SPEC.md's settings
     otherwise).
     ``configs/quickstart.yaml`` holds the same values."""
     return ExperimentConfig(

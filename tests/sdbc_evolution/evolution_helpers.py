@@ -1,11 +1,11 @@
-"""Shared helpers for the evolution tests: a fast stand-in for the engine."""
+"""Shared helpers for the evolution tests: a fast stand-in for the engine, and run
+comparisons. (Not a conftest: test directories below have their own.)"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-import pytest
 from sdbc_evolution.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
 from sdbc_evolution.results import TIME_COLUMNS, read_generations, read_individuals
 from sdbc_sim.engine import controller_fitness
@@ -79,11 +79,6 @@ class ToyEvaluator(Evaluator):
             characterisation=characterisation.mean(axis=1),
             sdbc=sdbc.mean(axis=1),
         )
-
-
-@pytest.fixture
-def toy_evaluator() -> ToyEvaluator:
-    return ToyEvaluator(workers=2)
 
 
 def snapshot(out: Path) -> dict[str, bytes]:
