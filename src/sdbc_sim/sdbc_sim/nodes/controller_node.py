@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -37,9 +38,15 @@ from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
 )
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import (
+    Executor,
+    ExternalShutdownException,
+    SingleThreadedExecutor,
+)
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerGuardCondition
 
 from sdbc_msgs.msg import RobotCommand, SensorReadings
 from sdbc_sim.network import NetworkShape, forward
@@ -54,6 +61,8 @@ from sdbc_sim.nodes.interface import (
 
 DEFAULT_TASK = "gate_escape"
 """Task of a node started without a ``task`` parameter."""
+IDLE_PERIOD = 0.1
+"""Seconds after which an idle controller lets the executor look for work."""
 
 
 def genome_problem(values: Sequence[float], shape: NetworkShape) -> str | None:
@@ -138,8 +147,9 @@ class ControllerNode(Node):
         self._publisher = self.create_publisher(
             RobotCommand, COMMAND_TOPIC, LOCKSTEP_QOS
         )
-        self.create_subscription(
-            SensorReadings, SENSORS_TOPIC, self._answer, LOCKSTEP_QOS
+        self._command = RobotCommand()  # refilled for every answer
+        self.sensors = self.create_subscription(
+            SensorReadings, SENSORS_TOPIC, self.answer, LOCKSTEP_QOS
         )
 
     @property
@@ -174,7 +184,8 @@ class ControllerNode(Node):
                 self._silent_warned = False
                 self.get_logger().debug(f"genome set ({self._genome.size} weights)")
 
-    def _answer(self, readings: SensorReadings) -> None:
+    def answer(self, readings: SensorReadings) -> None:
+        """Publishes the command for ``readings`` (none without a genome)."""
         if self._genome is None:
             if not self._silent_warned:
                 self.get_logger().warning(
@@ -191,13 +202,14 @@ class ControllerNode(Node):
             )
             return
         outputs = forward(self._genome, self.shape, x.reshape(1, -1))[0]
-        command = RobotCommand(
-            outputs=outputs.tolist(),
-            trial_id=readings.trial_id,
-            step=readings.step,
-            robot=readings.robot,
+        command = self._command
+        command.outputs = outputs.tolist()
+        command.trial_id = readings.trial_id
+        command.step = readings.step
+        command.robot = readings.robot
+        command.header.stamp.sec, command.header.stamp.nanosec = divmod(
+            time.time_ns(), 1_000_000_000
         )
-        command.header.stamp = self.get_clock().now().to_msg()
         self._publisher.publish(command)
 
 
@@ -243,7 +255,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             node = ControllerNode(robot)
             nodes.append(node)
             executor.add_node(node)
-        executor.spin()
+        serve(nodes, executor)
     except ValueError as error:
         print(f"controller_node: error: {error}", file=sys.stderr)
         return 2
@@ -255,6 +267,45 @@ def main(argv: Sequence[str] | None = None) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def serve(nodes: Sequence[ControllerNode], executor: Executor) -> None:
+    """Answers sensor readings until shutdown.
+
+    Readings are taken straight from an rcl wait set and answered at once: an
+    executor round in Python costs more than the network itself, and lockstep
+    waits for the slowest robot. Everything else the nodes serve (their parameter
+    services, QoS events) goes through ``executor`` as usual, whenever the wait
+    set sees a service request, and at least every :data:`IDLE_PERIOD` seconds.
+    """
+    context = executor.context
+    interrupt = SignalHandlerGuardCondition(context)
+    services = [service for node in nodes for service in node.services]
+    wait_set = _rclpy.WaitSet(len(nodes), 1, 0, 0, len(services), 0, context.handle)
+    try:
+        while context.ok():
+            wait_set.clear_entities()
+            for node in nodes:
+                wait_set.add_subscription(node.sensors.handle)
+            for service in services:
+                wait_set.add_service(service.handle)
+            wait_set.add_guard_condition(interrupt.handle)
+            wait_set.wait(int(IDLE_PERIOD * 1e9))
+            ready = wait_set.get_ready_entities("subscription")
+            for node in nodes:
+                if node.sensors.handle.pointer in ready:
+                    while (
+                        taken := node.sensors.handle.take_message(SensorReadings, False)
+                    ) is not None:
+                        node.answer(taken[0])
+            if interrupt.handle.pointer in wait_set.get_ready_entities(
+                "guard_condition"
+            ):
+                return
+            if wait_set.get_ready_entities("service") or not ready:
+                executor.spin_once(timeout_sec=0.0)
+    finally:
+        interrupt.destroy()
 
 
 if __name__ == "__main__":

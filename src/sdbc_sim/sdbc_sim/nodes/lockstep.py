@@ -1,8 +1,9 @@
 """Lockstep: the simulator's exchange with the robots' controllers at every step.
 
 At step k of trial n the simulator publishes robot i's readings (trial n, step k)
-on ``robot_<i>/sensors`` for every i, then waits until every robot has answered on
-``robot_<i>/command`` with a command for (n, k); only then does it step. A command
+on ``robot_<i>/sensors`` for every i (:meth:`Lockstep.publish`), then waits until
+every robot has answered on ``robot_<i>/command`` with a command for (n, k)
+(:meth:`Lockstep.gather`); only then does it step. A command
 for another trial or step is stale and ignored. If some robot has not answered
 within the timeout, the exchange fails with :class:`MissingCommands` naming them,
 so a dead controller aborts its trial instead of hanging it.
@@ -127,6 +128,9 @@ class Lockstep:
         self._interrupt = SignalHandlerGuardCondition(context)
         self._wait_set = _rclpy.WaitSet(n_robots, 1, 0, 0, 0, 0, context.handle)
         self._clock = node.get_clock()
+        # One message per robot, refilled at every step.
+        self._readings = [SensorReadings(robot=i) for i in range(n_robots)]
+        self._deadline_start = time.monotonic()
 
     def unconnected(self) -> list[int]:
         """Robots whose sensor topic has no reader or command topic no writer."""
@@ -163,16 +167,23 @@ class Lockstep:
             while subscription.handle.take_message(RobotCommand, False) is not None:
                 pass
 
-    def exchange(
-        self, trial_id: int, step: int, inputs: np.ndarray, timeout: float
-    ) -> np.ndarray:
-        """Publishes step ``step``'s readings and gathers every robot's command.
+    def publish(self, trial_id: int, step: int, inputs: np.ndarray) -> None:
+        """Publishes every robot's readings (N, I) for step ``step`` of trial
+        ``trial_id``: the robots are to answer with their commands for that step."""
+        stamp = self._clock.now().to_msg()
+        for i, (publisher, readings) in enumerate(
+            zip(self._publishers, self._readings, strict=True)
+        ):
+            readings.header.stamp = stamp
+            readings.values = inputs[i].tolist()
+            readings.trial_id = trial_id
+            readings.step = step
+            publisher.publish(readings)
+        self._deadline_start = time.monotonic()
 
-        Args:
-            trial_id: The running trial.
-            step: k, the step the commands are for (1 for the first).
-            inputs: (N, I) the robots' sensor readings.
-            timeout: Seconds to wait for all commands.
+    def gather(self, trial_id: int, step: int, timeout: float) -> np.ndarray:
+        """Waits for every robot's command for step ``step`` of trial
+        ``trial_id``, at most ``timeout`` seconds after the readings went out.
 
         Returns:
             (N, O) the robots' outputs.
@@ -183,16 +194,9 @@ class Lockstep:
                 outside [0, 1] or NaN, or another robot's index.
             Interrupted: On Ctrl-C.
         """
-        stamp = self._clock.now().to_msg()
-        for i, publisher in enumerate(self._publishers):
-            readings = SensorReadings(
-                values=inputs[i].tolist(), trial_id=trial_id, step=step, robot=i
-            )
-            readings.header.stamp = stamp
-            publisher.publish(readings)
         outputs = np.empty((self.n_robots, self.n_outputs))
         pending = set(range(self.n_robots))
-        deadline = time.monotonic() + timeout
+        deadline = self._deadline_start + timeout
         wait_set = self._wait_set
         while True:
             for i in list(pending):

@@ -10,9 +10,10 @@ as ``run_batch``), then, at every step k = 1, 2, ...:
    every robot's command for step k on ``robot_<i>/command``
    (:mod:`sdbc_sim.nodes.lockstep`); a robot silent for ``command_timeout``
    seconds aborts the trial with an error naming it;
-2. steps the trial with those outputs;
-3. publishes the task state (``task_state``, sdbc_msgs/TaskState) and, every
-   ``marker_period`` steps, markers (``markers``, visualization_msgs/MarkerArray).
+2. steps the trial with those outputs, and publishes the readings for step k + 1;
+3. publishes the task state after step k (``task_state``, sdbc_msgs/TaskState)
+   and, every ``marker_period`` steps, markers (``markers``,
+   visualization_msgs/MarkerArray), while the controllers compute step k + 1.
 
 The answer carries the trial's fitness, task-specific characterisation and length,
 or ``success = false`` and a message saying why the trial was aborted; the node then
@@ -206,16 +207,18 @@ class SimulatorNode(Node):
             lockstep.drain()
             stepper.reset(seed)
             marker_period = int(self._parameter("marker_period"))
-            while not stepper.done:
+            timeout = self._parameter("command_timeout")
+            lockstep.publish(trial_id, 1, stepper.sensors())
+            while True:
                 step = stepper.step_count + 1
-                outputs = lockstep.exchange(
-                    trial_id,
-                    step,
-                    stepper.sensors(),
-                    self._parameter("command_timeout"),
-                )
-                stepper.step(outputs)
+                stepper.step(lockstep.gather(trial_id, step, timeout))
+                # The next readings go out first: the controllers compute while
+                # this step's task state is built and published.
+                if not stepper.done:
+                    lockstep.publish(trial_id, step + 1, stepper.sensors())
                 self._publish_state(trial_id, step, marker_period)
+                if stepper.done:
+                    break
         except LockstepError as error:
             raise TrialAborted(str(error)) from None
         fitness, characterisation, length = stepper.result()

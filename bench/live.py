@@ -1,0 +1,202 @@
+"""Lockstep speed of the live ROS 2 graph, beside the batched engine, in one run.
+
+The graph: ``simulator_node`` and one ``controller_node`` process per robot (four
+for gate escape), started by the graph launcher, DDS on localhost. The same
+single trial (same genome, same seed) is then run:
+
+- live: through the simulator's ``run_trial`` service, in lockstep with the
+  controller processes, task state and markers published as in normal use;
+  steps/s = trial length / wall time of the call, median over ``--repeat`` trials;
+- stepper: the engine's one-trial stepper driven in this process with the
+  network computed here (what the simulator does, without DDS);
+- batched: :func:`sdbc_sim.run_batch` on that one trial.
+
+The trials are checked to be identical (fitness and length). The last line reads
+``LIVE lockstep-steps/s=N batched=M stepper=S target=500 ok|below``.
+
+Run: ``scripts/sdbc bench live`` (options: ``--task``, ``--steps``, ``--repeat``,
+``--robots-per-process``, ``--seed``, ``--marker-period``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+TARGET = 500.0
+"""Lockstep steps per second the live graph should reach with 4 controllers."""
+
+
+def parse_args() -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--task", default="gate_escape")
+    parser.add_argument(
+        "--steps", type=int, default=1000, help="max_steps of the trial (default 1000)"
+    )
+    parser.add_argument("--repeat", type=int, default=3, help="live trials timed")
+    parser.add_argument("--robots-per-process", type=int, default=1)
+    parser.add_argument("--seed", type=int, default=1, help="the trial's seed")
+    parser.add_argument(
+        "--marker-period", type=int, default=10, help="simulator's marker_period"
+    )
+    return parser.parse_args()
+
+
+def long_genome(task, seed: int, candidates: int = 16) -> np.ndarray:
+    """A random genome whose trial lasts longest: the timing then covers the
+    most steps."""
+    from sdbc_sim.engine import run_batch
+
+    genomes = np.random.default_rng(0).uniform(
+        -1.0, 1.0, (candidates, task.genome_length)
+    )
+    result = run_batch(task, genomes, np.full((candidates, 1), seed))
+    return genomes[int(np.argmax(result.length[:, 0]))]
+
+
+def time_batched(task, genome: np.ndarray, seed: int) -> tuple[float, float, int]:
+    """(steps/s, fitness, length) of the batched engine on the one trial."""
+    from sdbc_sim.engine import run_batch
+
+    best = np.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        result = run_batch(task, genome[None], np.array([[seed]]))
+        best = min(best, time.perf_counter() - t0)
+    length = int(result.length[0, 0])
+    return length / best, float(result.fitness[0, 0]), length
+
+
+def time_stepper(task, genome: np.ndarray, seed: int) -> float:
+    """Steps/s of the one-trial stepper with the network computed in process."""
+    from sdbc_sim.engine import TrialStepper
+    from sdbc_sim.network import forward
+
+    stepper = TrialStepper(task)
+    stepper.reset(seed)
+    t0 = time.perf_counter()
+    while not stepper.done:
+        stepper.step(forward(genome, task.network, stepper.sensors()))
+    return stepper.step_count / (time.perf_counter() - t0)
+
+
+def time_live(
+    args, task, genome: np.ndarray, tmp: Path
+) -> list[tuple[float, float, int]]:
+    """(steps/s, fitness, length) of each live trial."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from sdbc_evolution.launch import (
+        ProcessGraph,
+        child_environment,
+        graph_processes,
+        load_graph_file,
+    )
+
+    from sdbc_msgs.srv import RunTrial
+
+    graph_file = tmp / "graph.yaml"
+    graph_file.write_text(
+        yaml.safe_dump(
+            {
+                "launch": {"robots_per_process": args.robots_per_process},
+                "/**": {
+                    "ros__parameters": {
+                        "task": args.task,
+                        "task_config": {"max_steps": args.steps},
+                    }
+                },
+                "simulator": {"ros__parameters": {"marker_period": args.marker_period}},
+                "/**/controller": {"ros__parameters": {"genome": genome.tolist()}},
+            }
+        )
+    )
+    parsed = load_graph_file(graph_file)
+    params = tmp / "parameters.yaml"
+    params.write_text(yaml.safe_dump(parsed.parameters))
+    env = child_environment()
+    env.setdefault("ROS_HOME", str(tmp / "ros_home"))
+    graph = ProcessGraph(graph_processes(parsed, params), log_dir=tmp / "logs", env=env)
+    results = []
+    with graph:
+        rclpy.init()
+        node = Node("bench_live")
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+        try:
+            client = node.create_client(RunTrial, "run_trial")
+            if not client.wait_for_service(timeout_sec=60.0):
+                sys.exit(f"the simulator did not come up; logs in {tmp / 'logs'}")
+            # A warm-up trial: discovery, first allocations, caches.
+            for i in range(args.repeat + 1):
+                t0 = time.perf_counter()
+                future = client.call_async(RunTrial.Request(seed=args.seed))
+                while not future.done():
+                    time.sleep(0.001)
+                seconds = time.perf_counter() - t0
+                answer = future.result()
+                if not answer.success:
+                    sys.exit(f"live trial aborted: {answer.message}")
+                if i > 0:
+                    results.append(
+                        (answer.length / seconds, answer.fitness, answer.length)
+                    )
+        finally:
+            executor.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown()
+    return results
+
+
+def main() -> None:
+    args = parse_args()
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    from sdbc_sim.tasks import make_task
+
+    task = make_task(args.task, max_steps=args.steps)
+    genome = long_genome(task, args.seed)
+    batched, fitness, length = time_batched(task, genome, args.seed)
+    stepper = time_stepper(task, genome, args.seed)
+    n_controllers = -(-task.layout.n_controlled // args.robots_per_process)
+    print(
+        f"{args.task}: one trial, seed {args.seed}, {length} steps, "
+        f"{task.layout.n_controlled} robots, {n_controllers} controller processes"
+    )
+    with tempfile.TemporaryDirectory(prefix="bench-live-") as tmp:
+        live = time_live(args, task, genome, Path(tmp))
+    for _, live_fitness, live_length in live:
+        if live_length != length or abs(live_fitness - fitness) > 1e-9:
+            sys.exit(
+                f"live trial differs from the batched one: fitness {live_fitness} vs "
+                f"{fitness}, length {live_length} vs {length}"
+            )
+    rates = [r for r, _, _ in live]
+    median = statistics.median(rates)
+    print(
+        f"  live lockstep : {median:9.0f} steps/s (trials: "
+        + ", ".join(f"{r:.0f}" for r in rates)
+        + ")"
+    )
+    print(f"  stepper       : {stepper:9.0f} steps/s (in process, no DDS)")
+    print(f"  batched engine: {batched:9.0f} steps/s (run_batch, one trial)")
+    verdict = "ok" if median >= TARGET else "below"
+    print(
+        f"LIVE lockstep-steps/s={median:.0f} batched={batched:.0f} "
+        f"stepper={stepper:.0f} target={TARGET:.0f} {verdict}"
+    )
+
+
+if __name__ == "__main__":
+    main()
