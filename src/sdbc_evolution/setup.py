@@ -21,6 +21,7 @@ setup(
             "evolution_node = sdbc_evolution.nodes.evolution_node:main",
             "recorder = sdbc_evolution.nodes.recorder_node:main",
             "sdbc-graph = sdbc_evolution.launch:main",
+            "sdbc-evolve = sdbc_evolution.cli:main",
         ],
     },
 )
