@@ -109,7 +109,9 @@ def time_live(
     graph_file.write_text(
         yaml.safe_dump(
             {
-                "launch": {"robots_per_process": args.robots_per_process},
+                "sdbc_graph": {
+                    "ros__parameters": {"robots_per_process": args.robots_per_process}
+                },
                 "/**": {
                     "ros__parameters": {
                         "task": args.task,

@@ -1,16 +1,17 @@
 """``sdbc-graph``: the whole live graph of a task as processes, from one YAML file.
 
 A graph file is a ROS 2 parameters file (``--params-file`` syntax: node name keys,
-``ros__parameters`` below them) with one more top-level key, ``launch``, for the
-launcher's own settings (:class:`LaunchSettings`). The task is named once, under
-``/**`` (``task``, ``task_config``), so that every node runs the same one. The
+``ros__parameters`` below them). The launcher's own settings
+(:class:`LaunchSettings`) are the parameters of the key ``sdbc_graph``, so the file
+stays valid for any node's ``--params-file``. The task is named once, under ``/**``
+(``task``, ``task_config``), so that every node runs the same one. The
 launcher starts, each as its own process with every parameter section passed as
 ``--params-file``:
 
 - the simulator (``simulator_node``);
 - the controllers of the task's N robots, ``robots_per_process`` per process
   (``controller_node --robots ...``; one process per robot by default);
-- the evolution node (``evolution_node``) if ``launch.evolution`` is true;
+- the evolution node (``evolution_node``) if ``sdbc_graph.evolution`` is true;
 - the recorder (``recorder``) if a bag directory is given (``--record``).
 
 It then waits: for Ctrl-C, for a node process to exit (which stops the graph), or,
@@ -48,8 +49,9 @@ from typing import Any
 
 import yaml
 
-LAUNCH_KEY = "launch"
-"""Top-level key of a graph file that holds :class:`LaunchSettings`."""
+LAUNCH_KEY = "sdbc_graph"
+"""Top-level key of a graph file whose ``ros__parameters`` are the
+:class:`LaunchSettings`."""
 SHARED_KEY = "/**"
 """Parameter section that every node reads; it names the task."""
 SHM_DIR = Path("/dev/shm")
@@ -74,7 +76,7 @@ class GraphError(ValueError):
 
 @dataclass(frozen=True)
 class LaunchSettings:
-    """The launcher's settings: the ``launch`` section of a graph file.
+    """The launcher's settings: the ``sdbc_graph`` section of a graph file.
 
     Attributes:
         robots_per_process: Controllers per process; 1 runs each robot's
@@ -102,24 +104,25 @@ class LaunchSettings:
             isinstance(self.robots_per_process, int) and self.robots_per_process >= 1
         ):
             raise GraphError(
-                f"launch.robots_per_process: must be an integer >= 1, got "
+                f"sdbc_graph.robots_per_process: must be an integer >= 1, got "
                 f"{self.robots_per_process!r}"
             )
         if not isinstance(self.evolution, bool):
             raise GraphError(
-                f"launch.evolution: must be true or false, got {self.evolution!r}"
+                f"sdbc_graph.evolution: must be true or false, got {self.evolution!r}"
             )
         topics = self.record_topics
         if isinstance(topics, str) or not all(isinstance(t, str) and t for t in topics):
             raise GraphError(
-                f"launch.record_topics: must be a list of topic names, got {topics!r}"
+                "sdbc_graph.record_topics: must be a list of topic names, got "
+                f"{topics!r}"
             )
         object.__setattr__(self, "record_topics", tuple(topics))
         for name in ("shutdown_timeout", "ready_timeout", "trial_timeout"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
                 raise GraphError(
-                    f"launch.{name}: must be a positive number, got {value!r}"
+                    f"sdbc_graph.{name}: must be a positive number, got {value!r}"
                 )
 
 
@@ -128,7 +131,7 @@ class GraphFile:
     """A parsed graph file.
 
     Attributes:
-        settings: The ``launch`` section.
+        settings: The ``sdbc_graph`` section.
         parameters: Every other section, as a ROS 2 parameters file holds them.
         task: The task name, from ``/**``.
         task_config: The task's setting overrides, from ``/**``.
@@ -149,7 +152,7 @@ def load_graph_file(path: str | Path) -> GraphFile:
 
     Raises:
         GraphError: Unreadable YAML, a section without ``ros__parameters``, an
-            unknown ``launch`` setting, no task under ``/**``, or a task_config
+            unknown ``sdbc_graph`` setting, no task under ``/**``, or a task_config
             that is not a mapping, each named.
     """
     from sdbc_sim.nodes.interface import format_task_config, parse_task_config
@@ -162,14 +165,17 @@ def load_graph_file(path: str | Path) -> GraphFile:
     if not isinstance(data, Mapping):
         raise GraphError(f"graph file {path}: expected a mapping of sections")
     data = dict(data)
-    launch = data.pop(LAUNCH_KEY, None) or {}
+    section = data.pop(LAUNCH_KEY, None) or {"ros__parameters": {}}
+    launch = section.get("ros__parameters") if isinstance(section, Mapping) else None
     if not isinstance(launch, Mapping):
-        raise GraphError(f"graph file {path}: '{LAUNCH_KEY}' must be a mapping")
+        raise GraphError(
+            f"graph file {path}: '{LAUNCH_KEY}' needs a 'ros__parameters' mapping"
+        )
     known = {f.name for f in dataclasses.fields(LaunchSettings)}
     unknown = sorted(set(launch) - known)
     if unknown:
         raise GraphError(
-            f"graph file {path}: unknown launch settings {unknown}; known: "
+            f"graph file {path}: unknown {LAUNCH_KEY} settings {unknown}; known: "
             f"{', '.join(sorted(known))}"
         )
     settings = LaunchSettings(**launch)

@@ -41,7 +41,9 @@ def test_live_evolution_equals_the_command_line_and_publishes_its_progress(
     graph.write_text(
         yaml.safe_dump(
             {
-                "launch": {"evolution": True, "robots_per_process": 2},
+                "sdbc_graph": {
+                    "ros__parameters": {"evolution": True, "robots_per_process": 2}
+                },
                 "/**": {
                     "ros__parameters": {
                         "task": "gate_escape",

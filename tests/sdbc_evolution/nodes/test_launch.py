@@ -28,7 +28,7 @@ def write(tmp_path: Path, data: dict) -> Path:
 
 def minimal(**launch_settings) -> dict:
     return {
-        "launch": launch_settings,
+        "sdbc_graph": {"ros__parameters": launch_settings},
         "/**": {
             "ros__parameters": {"task": "gate_escape", "task_config": {"max_steps": 50}}
         },
@@ -37,7 +37,7 @@ def minimal(**launch_settings) -> dict:
 
 def test_the_shipped_graph_files_load():
     for path in sorted((ROOT / "configs" / "ros").glob("*.yaml")):
-        if "launch" not in yaml.safe_load(path.read_text()):
+        if "sdbc_graph" not in yaml.safe_load(path.read_text()):
             continue  # an experiment configuration, not a graph file
         graph = load_graph_file(path)
         assert graph.task in {"gate_escape", "resource_sharing", "predator_prey"}
@@ -48,7 +48,7 @@ def test_task_config_becomes_one_string_parameter_for_every_node(tmp_path):
     assert graph.task == "gate_escape" and graph.task_config == {"max_steps": 50}
     shared = graph.parameters["/**"]["ros__parameters"]
     assert shared["task_config"] == "{max_steps: 50}"
-    assert "launch" not in graph.parameters
+    assert "sdbc_graph" not in graph.parameters
 
 
 def test_one_process_per_robot_by_default_or_several_robots_per_process(tmp_path):
@@ -96,7 +96,10 @@ def test_one_process_per_robot_by_default_or_several_robots_per_process(tmp_path
     ("data", "message"),
     [
         (
-            {"launch": {"robots": 2}, "/**": {"ros__parameters": {"task": "x"}}},
+            {
+                "sdbc_graph": {"ros__parameters": {"robots": 2}},
+                "/**": {"ros__parameters": {"task": "x"}},
+            },
             "robots",
         ),
         ({"/**": {"ros__parameters": {}}}, "name the task"),
@@ -112,8 +115,9 @@ def test_one_process_per_robot_by_default_or_several_robots_per_process(tmp_path
             },
             "task_config",
         ),
-        ({**minimal(), "launch": {"robots_per_process": 0}}, "robots_per_process"),
-        ({**minimal(), "launch": {"shutdown_timeout": -1}}, "shutdown_timeout"),
+        (minimal(robots_per_process=0), "robots_per_process"),
+        (minimal(shutdown_timeout=-1), "shutdown_timeout"),
+        ({**minimal(), "sdbc_graph": {"evolution": True}}, "sdbc_graph"),
     ],
 )
 def test_malformed_graph_files_are_refused_naming_the_problem(tmp_path, data, message):

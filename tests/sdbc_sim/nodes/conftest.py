@@ -89,7 +89,9 @@ def start_live_graph(
     graph_file.write_text(
         yaml.safe_dump(
             {
-                "launch": {"robots_per_process": robots_per_process},
+                "sdbc_graph": {
+                    "ros__parameters": {"robots_per_process": robots_per_process}
+                },
                 "/**": {
                     "ros__parameters": {"task": task_name, "task_config": task_config}
                 },
