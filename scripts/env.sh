@@ -17,7 +17,12 @@ export PATH="$_sdbc_venv/bin:$_sdbc_root/install/sdbc_sim/lib/sdbc_sim:$_sdbc_ro
 
 # ROS 2: the workspace overlays the venv, as install/setup.bash would order them.
 export AMENT_PREFIX_PATH="$_sdbc_root/install/sdbc_evolution:$_sdbc_root/install/sdbc_sim:$_sdbc_root/install/sdbc_msgs:$_sdbc_venv"
-export PYTHONPATH="$_sdbc_root/src/sdbc_sim:$_sdbc_root/src/sdbc_evolution:$_sdbc_root/install/sdbc_msgs/lib/$_sdbc_pyver/site-packages${PYTHONPATH:+:$PYTHONPATH}"
+# Sources first; build/<pkg> holds the symlink-installed packages' metadata (egg-info),
+# which their console scripts look up, as colcon's develop hook would add it.
+_sdbc_py="$_sdbc_root/src/sdbc_sim:$_sdbc_root/src/sdbc_evolution"
+_sdbc_py="$_sdbc_py:$_sdbc_root/build/sdbc_sim:$_sdbc_root/build/sdbc_evolution"
+_sdbc_py="$_sdbc_py:$_sdbc_root/install/sdbc_msgs/lib/$_sdbc_pyver/site-packages"
+export PYTHONPATH="$_sdbc_py${PYTHONPATH:+:$PYTHONPATH}"
 _sdbc_ld="$_sdbc_venv/lib:$_sdbc_root/install/sdbc_msgs/lib"
 for _d in "$_sdbc_site"/ros_*.libs; do [ -d "$_d" ] && _sdbc_ld="$_sdbc_ld:$_d"; done
 export LD_LIBRARY_PATH="$_sdbc_ld${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
@@ -29,4 +34,4 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST
 export ROS_HOME="${ROS_HOME:-$_sdbc_root/.ros}"
 export MPLBACKEND="${MPLBACKEND:-Agg}"
 
-unset _sdbc_root _sdbc_venv _sdbc_pyver _sdbc_site _sdbc_ld _d
+unset _sdbc_root _sdbc_venv _sdbc_pyver _sdbc_site _sdbc_ld _sdbc_py _d

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -41,3 +44,12 @@ def test_ci_sets_localhost_discovery():
     assert (
         "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in (ROOT / ".ci" / "run").read_text()
     )
+
+
+@pytest.mark.ros
+def test_console_scripts_of_the_built_workspace_start():
+    script = shutil.which("sdbc-evolve")
+    assert script is not None, "sdbc-evolve is not on PATH: source scripts/env.sh"
+    assert Path(script).is_relative_to(ROOT / "install")
+    out = subprocess.run([script, "--help"], capture_output=True, text=True, check=True)
+    assert "--treatment" in out.stdout
