@@ -1,0 +1,387 @@
+"""The analysis of a study directory: every table and figure, and the claims.
+
+``analyse(study_dir, out_dir)`` reads the run directories (:mod:`.rundirs`), leaves
+out and names the unusable ones, and writes::
+
+    OUT/
+      report.md                      the report (:mod:`.report`)
+      figures/curves_<task>.png      best-fitness curves
+      figures/bests_<task>.png       boxplots of each run's best
+      figures/exploration_<task>.png SOM exploration maps
+      tables/curves_<task>.csv       generation, per treatment mean, sd, n
+      tables/bests_<task>.csv        treatment, run, best
+      tables/mann_whitney_<task>.csv pairwise tests
+      tables/relevance_<task>.csv    MI of every SDBC dimension (NS-SD+ runs)
+      tables/exploration_<task>.csv  per run: uniformity, coverage, high-fitness share
+      tables/exploration_<task>.npz  per-run shares, mean shares, percentiles, region
+      tables/cost.csv                measured rates per task
+      tables/projection.csv          the paper preset's wall time on W workers
+      tables/claims.csv              every claim with our p-value and verdict
+      tables/problems.csv            runs left out, and why
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sdbc_evolution.config import Treatment
+from sdbc_evolution.study.claims import (
+    ALPHA,
+    Claim,
+    exploration_claims,
+    quality_claims,
+    relevance_claims,
+)
+from sdbc_evolution.study.cost import (
+    CLUSTER_WORKERS,
+    Projection,
+    TaskCost,
+    paper_preset,
+    projections,
+    task_cost,
+)
+from sdbc_evolution.study.exploration import (
+    ExplorationMaps,
+    SomSettings,
+    exploration_maps,
+)
+from sdbc_evolution.study.figures import plot_bests, plot_curves, plot_exploration
+from sdbc_evolution.study.plan import LOG_FILE
+from sdbc_evolution.study.quality import (
+    Curves,
+    PairTest,
+    best_curves,
+    pairwise_tests,
+    run_bests,
+)
+from sdbc_evolution.study.relevance import RelevanceTable, relevance_table
+from sdbc_evolution.study.rundirs import RunProblem, StudyData, load_study
+
+FIGURES_DIR = "figures"
+TABLES_DIR = "tables"
+REPORT_FILE = "report.md"
+
+
+@dataclass(frozen=True)
+class AnalysisSettings:
+    """How a study is analysed."""
+
+    som: SomSettings = field(default_factory=SomSettings)
+    """The exploration maps."""
+    top_features: int = 6
+    """Features per task in the report's relevance table (the paper: 5-6)."""
+    alpha: float = ALPHA
+    """Significance level of the claims."""
+    cluster_workers: tuple[int, ...] = CLUSTER_WORKERS
+    """Cluster sizes of the paper preset's projection."""
+
+    def __post_init__(self) -> None:
+        if self.top_features < 1:
+            raise ValueError(f"top_features must be >= 1, got {self.top_features}")
+        if not 0 < self.alpha < 1:
+            raise ValueError(f"alpha must be in (0, 1), got {self.alpha}")
+        if not self.cluster_workers or min(self.cluster_workers) < 1:
+            raise ValueError("cluster_workers must be positive")
+
+
+@dataclass
+class TaskAnalysis:
+    """Everything computed for one task."""
+
+    task: str
+    curves: Curves
+    bests: dict[Treatment, np.ndarray]
+    best_runs: dict[Treatment, tuple[str, ...]]
+    tests: list[PairTest]
+    relevance: RelevanceTable | None
+    maps: ExplorationMaps
+    cost: TaskCost
+    figures: dict[str, Path]
+
+
+@dataclass
+class Analysis:
+    """A whole study's analysis."""
+
+    study: StudyData
+    settings: AnalysisSettings
+    tasks: list[TaskAnalysis]
+    claims: list[Claim]
+    projections: list[Projection]
+    sessions: list[dict[str, Any]]
+    out: Path
+    problems: list[RunProblem]
+
+
+def read_sessions(root: Path) -> list[dict[str, Any]]:
+    """The study log's entries (a damaged line is left out)."""
+    path = root / LOG_FILE
+    if not path.is_file():
+        return []
+    entries = []
+    for line in path.read_text().splitlines():
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(entry, dict):
+            entries.append(entry)
+    return entries
+
+
+def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        for row in rows:
+            writer.writerow(
+                [
+                    repr(float(v)) if isinstance(v, (float, np.floating)) else v
+                    for v in row
+                ]
+            )
+    return path
+
+
+def analyse_task(
+    study: StudyData, task: str, settings: AnalysisSettings, out: Path
+) -> TaskAnalysis:
+    figures, tables = out / FIGURES_DIR, out / TABLES_DIR
+    curves = best_curves(study, task)
+    header = ["generation"]
+    for t in curves.treatments:
+        header += [f"{t.value} mean", f"{t.value} sd", f"{t.value} n"]
+    rows = []
+    for g in curves.generations:
+        row: list[Any] = [int(g)]
+        for i in range(len(curves.treatments)):
+            row += [curves.mean[i, g], curves.sd[i, g], int(curves.n[i, g])]
+        rows.append(row)
+    _write_csv(tables / f"curves_{task}.csv", header, rows)
+
+    bests = run_bests(study, task)
+    best_runs = {t: tuple(r.name for r in study.of(task, t)) for t in bests}
+    _write_csv(
+        tables / f"bests_{task}.csv",
+        ["treatment", "run", "best"],
+        [
+            [t.value, name, value]
+            for t in bests
+            for name, value in zip(best_runs[t], bests[t], strict=True)
+        ],
+    )
+    tests = pairwise_tests(task, bests)
+    _write_csv(
+        tables / f"mann_whitney_{task}.csv",
+        [
+            "a",
+            "b",
+            "n_a",
+            "n_b",
+            "median_a",
+            "median_b",
+            "mean_a",
+            "mean_b",
+            "U",
+            "A",
+            "p",
+        ],
+        [
+            [
+                s.a.value,
+                s.b.value,
+                s.n_a,
+                s.n_b,
+                s.median_a,
+                s.median_b,
+                s.mean_a,
+                s.mean_b,
+                s.u,
+                s.effect,
+                s.p,
+            ]
+            for s in tests
+        ],
+    )
+
+    relevance = relevance_table(study, task)
+    if relevance is not None:
+        _write_csv(
+            tables / f"relevance_{task}.csv",
+            [
+                "rank",
+                "feature",
+                "mean_mi_bits",
+                "sd_mi_bits",
+                "runs",
+                "in_task_specific",
+            ],
+            [
+                [
+                    i + 1,
+                    name,
+                    relevance.mean[i],
+                    relevance.sd[i],
+                    relevance.runs,
+                    bool(relevance.in_task_specific[i]),
+                ]
+                for i, name in enumerate(relevance.names)
+            ],
+        )
+
+    maps = exploration_maps(study, task, settings.som)
+    rows = []
+    for k, t in enumerate(maps.treatments):
+        for name, u, c, h in zip(
+            maps.run_names[k],
+            maps.uniformity(k),
+            maps.coverage(k),
+            maps.region_share(k),
+            strict=True,
+        ):
+            rows.append([t.value, name, u, c, h])
+    _write_csv(
+        tables / f"exploration_{task}.csv",
+        ["treatment", "run", "uniformity", "coverage", "high_fitness_share"],
+        rows,
+    )
+    np.savez_compressed(
+        tables / f"exploration_{task}.npz",
+        treatments=np.array([t.value for t in maps.treatments]),
+        mean_share=maps.mean_share,
+        percentile=maps.percentile,
+        pooled_percentile=maps.pooled_percentile,
+        region=maps.region,
+        **{f"shares_{t.value}": maps.shares[k] for k, t in enumerate(maps.treatments)},
+        **{
+            f"runs_{t.value}": np.array(maps.run_names[k])
+            for k, t in enumerate(maps.treatments)
+        },
+    )
+
+    figure_paths = {
+        "curves": plot_curves(curves, figures / f"curves_{task}.png"),
+        "bests": plot_bests(task, bests, figures / f"bests_{task}.png"),
+        "exploration": plot_exploration(maps, figures / f"exploration_{task}.png"),
+    }
+    return TaskAnalysis(
+        task=task,
+        curves=curves,
+        bests=bests,
+        best_runs=best_runs,
+        tests=tests,
+        relevance=relevance,
+        maps=maps,
+        cost=task_cost(study, task),
+        figures=figure_paths,
+    )
+
+
+def analyse(
+    study_dir: str | Path,
+    out_dir: str | Path | None = None,
+    settings: AnalysisSettings | None = None,
+    command: list[str] | None = None,
+) -> Analysis:
+    """Analyses the study in ``study_dir`` into ``out_dir`` (default
+    ``study_dir/report``) and writes the report.
+
+    Raises:
+        FileNotFoundError: No usable run at all.
+    """
+    from sdbc_evolution.study.report import write_report
+
+    settings = settings or AnalysisSettings()
+    root = Path(study_dir)
+    out = Path(out_dir) if out_dir is not None else root / "report"
+    study = load_study(root)
+    (out / FIGURES_DIR).mkdir(parents=True, exist_ok=True)
+    (out / TABLES_DIR).mkdir(parents=True, exist_ok=True)
+    tasks = [analyse_task(study, task, settings, out) for task in study.tasks()]
+    claims: list[Claim] = []
+    for ta in tasks:
+        claims += quality_claims(ta.task, ta.tests, settings.alpha)
+    for ta in tasks:
+        claims += relevance_claims(ta.task, ta.relevance)
+    for ta in tasks:
+        claims += exploration_claims(ta.maps, settings.alpha)
+    tables = out / TABLES_DIR
+    _write_csv(
+        tables / "claims.csv",
+        ["topic", "task", "claim", "paper", "ours", "p", "verdict"],
+        [
+            [
+                c.topic,
+                c.task,
+                c.statement,
+                c.paper,
+                c.ours,
+                "" if c.p is None else c.p,
+                c.verdict.value,
+            ]
+            for c in claims
+        ],
+    )
+    _write_csv(
+        tables / "problems.csv",
+        ["run", "reason"],
+        [[p.name, p.reason] for p in study.problems],
+    )
+    costs = [ta.cost for ta in tasks]
+    _write_csv(
+        tables / "cost.csv",
+        [
+            "task",
+            "runs",
+            "bodies",
+            "max_steps",
+            "mean_trial_length",
+            "robot_steps_per_s_per_worker",
+            "serial_s_per_individual",
+            "s_per_generation",
+            "generations_per_s",
+            "run_seconds_total",
+        ],
+        [
+            [
+                c.task,
+                c.runs,
+                c.bodies,
+                c.max_steps,
+                c.mean_length,
+                c.rate,
+                c.serial_per_individual,
+                c.seconds_per_generation,
+                c.generations_per_second,
+                c.run_seconds,
+            ]
+            for c in costs
+        ],
+    )
+    projected = projections(costs, paper_preset(), settings.cluster_workers)
+    _write_csv(
+        tables / "projection.csv",
+        ["task", "workers", "expected_hours", "bound_hours", "cpu_hours"],
+        [
+            [p.task, p.workers, p.expected_hours, p.bound_hours, p.cpu_hours]
+            for p in projected
+        ],
+    )
+    analysis = Analysis(
+        study=study,
+        settings=settings,
+        tasks=tasks,
+        claims=claims,
+        projections=projected,
+        sessions=read_sessions(root),
+        out=out,
+        problems=study.problems,
+    )
+    write_report(analysis, out / REPORT_FILE, command)
+    return analysis

@@ -1,0 +1,260 @@
+"""Behaviour-space exploration: the paper's Kohonen maps (self-organising maps).
+
+Per task, as in the authors' analysis scripts:
+
+1. a **sample** of raw SDBC vectors drawn evenly from every run of every treatment
+   (individuals of all generations), z-scored per dimension with the sample's mean
+   and SD (SD 0 read as 1);
+2. a ``rows x columns`` **SOM** (minisom; weights start at random sample vectors,
+   Gaussian neighbourhood) trained on that sample;
+3. every individual of every run **mapped** to its best-matching unit
+   BMU(x) = argmin_u ||z(x) - m_u||;
+4. per run, the **share** of its individuals in each unit, s_{r,u} = n_{r,u} / n_r
+   (sum over u = 1); per treatment, the mean share over its runs (circle size), and
+   the ``fitness_percentile``-th percentile of the fitness of its individuals in each
+   unit, pooled over its runs (colour).
+
+Two per-run numbers put the paper's reading of the maps to a test:
+
+- **uniformity**: the normalised entropy of the run's shares,
+  U_r = -sum_u s_{r,u} ln s_{r,u} / ln(rows x columns), 1 when every unit holds as
+  many individuals, 0 when one unit holds them all ("Fit explores a narrow region",
+  "NS-SD is the most uniform");
+- **high-fitness share**: the share of the run's individuals in the high-fitness
+  region, the ``high_fitness_units`` fraction of occupied units with the highest
+  pooled (all treatments) fitness percentile ("NS-SD+ spends more effort in the
+  high-fitness region than NS-SD").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sdbc_evolution.config import Treatment
+from sdbc_evolution.study.rundirs import RunData, StudyData
+
+BMU_CHUNK = 4096
+"""Individuals mapped per matrix product (bounds the memory of the mapping)."""
+
+
+@dataclass(frozen=True)
+class SomSettings:
+    """The exploration maps."""
+
+    rows: int = 20
+    """Rows of the map (the paper: 20)."""
+    columns: int = 20
+    """Columns of the map (the paper: 20)."""
+    sample_size: int = 50_000
+    """SDBC vectors the map is trained on (the authors' scripts: 50 000)."""
+    iterations: int = 50_000
+    """Training steps (one sample vector each)."""
+    sigma: float = 3.0
+    """Initial neighbourhood radius, in units; it decays as training goes."""
+    learning_rate: float = 0.5
+    """Initial learning rate; it decays as training goes."""
+    fitness_percentile: float = 75.0
+    """Percentile of the fitness in a unit that colours it (the authors: 75)."""
+    high_fitness_units: float = 0.1
+    """Fraction of the occupied units that make up the high-fitness region."""
+    seed: int = 0
+    """Seed of the sample and the map's training."""
+
+    def __post_init__(self) -> None:
+        checks = {
+            "rows": self.rows >= 2,
+            "columns": self.columns >= 2,
+            "sample_size": self.sample_size >= 2,
+            "iterations": self.iterations >= 1,
+            "sigma": self.sigma > 0,
+            "learning_rate": self.learning_rate > 0,
+            "fitness_percentile": 0 <= self.fitness_percentile <= 100,
+            "high_fitness_units": 0 < self.high_fitness_units <= 1,
+        }
+        bad = [k for k, ok in checks.items() if not ok]
+        if bad:
+            raise ValueError(f"SOM settings out of range: {', '.join(bad)}")
+
+    @property
+    def units(self) -> int:
+        return self.rows * self.columns
+
+
+@dataclass(frozen=True)
+class ExplorationMaps:
+    """The maps of one task.
+
+    Attributes:
+        task: Task name.
+        settings: How they were made.
+        treatments: Treatments, the order of every per-treatment axis.
+        run_names: Per treatment, its runs' names.
+        shares: Per treatment, (R, U) share of each run's individuals per unit.
+        mean_share: (K, U) mean share over the treatment's runs.
+        percentile: (K, U) fitness percentile of the treatment's individuals per
+            unit (NaN where it has none).
+        pooled_percentile: (U,) the same over every treatment's individuals.
+        region: (U,) bool, the high-fitness region.
+        sample_count: SDBC vectors the map was trained on.
+        quantisation_error: Mean distance of the sample to its BMU's weights.
+    """
+
+    task: str
+    settings: SomSettings
+    treatments: tuple[Treatment, ...]
+    run_names: tuple[tuple[str, ...], ...]
+    shares: tuple[np.ndarray, ...]
+    mean_share: np.ndarray
+    percentile: np.ndarray
+    pooled_percentile: np.ndarray
+    region: np.ndarray
+    sample_count: int
+    quantisation_error: float
+
+    def uniformity(self, k: int) -> np.ndarray:
+        """(R,) normalised entropy of each run of treatment ``k``."""
+        s = self.shares[k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            terms = np.where(s > 0, s * np.log(s), 0.0)
+        return -terms.sum(axis=1) / np.log(self.settings.units)
+
+    def region_share(self, k: int) -> np.ndarray:
+        """(R,) share of each run of treatment ``k`` in the high-fitness region."""
+        return self.shares[k][:, self.region].sum(axis=1)
+
+    def coverage(self, k: int) -> np.ndarray:
+        """(R,) fraction of the units each run of treatment ``k`` visits."""
+        return (self.shares[k] > 0).mean(axis=1)
+
+
+def _sample(runs: list[RunData], size: int, rng: np.random.Generator) -> np.ndarray:
+    """About ``size`` raw SDBC vectors, the same number from every run."""
+    per_run = max(1, size // len(runs))
+    parts = []
+    for run in runs:
+        counts = np.array([f.shape[0] for f in run.fitness])
+        total = int(counts.sum())
+        chosen = np.sort(rng.choice(total, size=min(per_run, total), replace=False))
+        offsets = np.concatenate([[0], np.cumsum(counts)])
+        for g, sdbc in enumerate(run.sdbc_generations()):
+            lo, hi = np.searchsorted(chosen, offsets[g : g + 2])
+            if hi > lo:
+                parts.append(sdbc[chosen[lo:hi] - offsets[g]].astype(np.float64))
+    return np.concatenate(parts)
+
+
+def best_matching_units(weights: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(n,) index of the nearest unit of ``weights`` (U, D) to each row of ``z``."""
+    norms = np.einsum("ud,ud->u", weights, weights)
+    out = np.empty(z.shape[0], dtype=np.int64)
+    for start in range(0, z.shape[0], BMU_CHUNK):
+        block = z[start : start + BMU_CHUNK]
+        distance = norms[None, :] - 2.0 * block @ weights.T
+        out[start : start + BMU_CHUNK] = np.argmin(distance, axis=1)
+    return out
+
+
+class _Scaler:
+    """z = (x - mean) / sd with the sample's coefficients (SD 0 read as 1)."""
+
+    def __init__(self, sample: np.ndarray) -> None:
+        self.mean = sample.mean(axis=0)
+        sd = sample.std(axis=0)
+        self.sd = np.where(sd > 0, sd, 1.0)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        z = (np.asarray(x, dtype=np.float64) - self.mean) / self.sd
+        # Non-finite values sit at the mean, as the authors' 0.5 fill did.
+        return np.where(np.isfinite(z), z, 0.0)
+
+
+def _percentiles(
+    units: np.ndarray, fitness: np.ndarray, n_units: int, q: float
+) -> np.ndarray:
+    out = np.full(n_units, np.nan)
+    order = np.argsort(units, kind="stable")
+    units, fitness = units[order], fitness[order]
+    bounds = np.searchsorted(units, np.arange(n_units + 1))
+    for u in range(n_units):
+        if bounds[u + 1] > bounds[u]:
+            out[u] = np.percentile(fitness[bounds[u] : bounds[u + 1]], q)
+    return out
+
+
+def exploration_maps(
+    study: StudyData, task: str, settings: SomSettings | None = None
+) -> ExplorationMaps:
+    """Trains the task's map and maps every run onto it (see module docstring)."""
+    from minisom import MiniSom
+
+    settings = settings or SomSettings()
+    treatments = tuple(study.treatments(task))
+    runs = study.of(task)
+    rng = np.random.default_rng(settings.seed)
+    raw = _sample(runs, settings.sample_size, rng)
+    scaler = _Scaler(raw)
+    sample = scaler(raw)
+    som = MiniSom(
+        settings.rows,
+        settings.columns,
+        sample.shape[1],
+        sigma=settings.sigma,
+        learning_rate=settings.learning_rate,
+        random_seed=settings.seed,
+    )
+    som.random_weights_init(sample)
+    som.train(sample, settings.iterations, random_order=True)
+    weights = som.get_weights().reshape(settings.units, -1)
+    sample_units = best_matching_units(weights, sample)
+    quantisation_error = float(
+        np.linalg.norm(sample - weights[sample_units], axis=1).mean()
+    )
+    shares, names, unit_lists, fitness_lists = [], [], [], []
+    for treatment in treatments:
+        treatment_runs = study.of(task, treatment)
+        run_shares, run_units, run_fitness = [], [], []
+        for run in treatment_runs:
+            units = np.concatenate(
+                [
+                    best_matching_units(weights, scaler(x))
+                    for x in run.sdbc_generations()
+                ]
+            )
+            counts = np.bincount(units, minlength=settings.units)
+            run_shares.append(counts / counts.sum())
+            run_units.append(units)
+            run_fitness.append(np.concatenate(run.fitness))
+        shares.append(np.stack(run_shares))
+        names.append(tuple(r.name for r in treatment_runs))
+        unit_lists.append(np.concatenate(run_units))
+        fitness_lists.append(np.concatenate(run_fitness))
+    q = settings.fitness_percentile
+    percentile = np.stack(
+        [
+            _percentiles(u, f, settings.units, q)
+            for u, f in zip(unit_lists, fitness_lists, strict=True)
+        ]
+    )
+    pooled = _percentiles(
+        np.concatenate(unit_lists), np.concatenate(fitness_lists), settings.units, q
+    )
+    occupied = np.flatnonzero(np.isfinite(pooled))
+    n_region = max(1, int(round(settings.high_fitness_units * occupied.size)))
+    best_units = occupied[np.argsort(-pooled[occupied], kind="stable")[:n_region]]
+    region = np.zeros(settings.units, dtype=bool)
+    region[best_units] = True
+    return ExplorationMaps(
+        task=task,
+        settings=settings,
+        treatments=treatments,
+        run_names=tuple(names),
+        shares=tuple(shares),
+        mean_share=np.stack([s.mean(axis=0) for s in shares]),
+        percentile=percentile,
+        pooled_percentile=pooled,
+        region=region,
+        sample_count=int(sample.shape[0]),
+        quantisation_error=quantisation_error,
+    )

@@ -1,0 +1,150 @@
+"""The study's figures, as PNG files (matplotlib, no display needed).
+
+- ``curves_<task>.png``: best fitness per generation, mean over runs with a band of
+  +-1 standard error (the paper's figure 2, left);
+- ``bests_<task>.png``: boxplots of each run's best, whiskers at 1.5 IQR, runs as
+  dots (figure 2, right);
+- ``exploration_<task>.png``: one SOM panel per treatment, circle area proportional
+  to the mean share of the treatment's individuals in the unit, colour the unit's
+  fitness percentile, one colour scale for all panels; the high-fitness region
+  outlined (figure 3).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from sdbc_evolution.config import Treatment
+from sdbc_evolution.study.claims import LABELS, TASK_TITLES
+from sdbc_evolution.study.exploration import ExplorationMaps
+from sdbc_evolution.study.quality import Curves
+
+COLOURS = {
+    Treatment.FIT: "#555555",
+    Treatment.NS_TS: "#1f77b4",
+    Treatment.NS_SD: "#ff7f0e",
+    Treatment.NS_SD_PLUS: "#2ca02c",
+}
+"""One colour per treatment, in every figure."""
+DPI = 120
+"""Resolution of the PNG files."""
+MAX_CIRCLE_AREA = 160.0
+"""Area (points^2) of the circle of the largest mean share in any panel."""
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_curves(curves: Curves, path: Path) -> Path:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    x = curves.generations
+    for i, treatment in enumerate(curves.treatments):
+        colour = COLOURS[treatment]
+        label = f"{LABELS[treatment]} (n = {int(curves.n[i].max())})"
+        ax.plot(x, curves.mean[i], color=colour, label=label, linewidth=1.4)
+        se = np.nan_to_num(curves.se[i])
+        ax.fill_between(
+            x, curves.mean[i] - se, curves.mean[i] + se, color=colour, alpha=0.2
+        )
+    ax.set_xlabel("generation")
+    source = "re-evaluated" if "reevaluated" in "".join(curves.sources) else "selected"
+    ax.set_ylabel(f"best fitness ({source})")
+    ax.set_title(f"{TASK_TITLES.get(curves.task, curves.task)}: mean +- SE over runs")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_bests(task: str, bests: dict[Treatment, np.ndarray], path: Path) -> Path:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(4.8, 4.0))
+    treatments = list(bests)
+    data = [bests[t] for t in treatments]
+    box = ax.boxplot(data, whis=1.5, showfliers=False, patch_artist=True)
+    ax.set_xticks(range(1, len(treatments) + 1), [LABELS[t] for t in treatments])
+    for patch, t in zip(box["boxes"], treatments, strict=True):
+        patch.set_facecolor(COLOURS[t])
+        patch.set_alpha(0.35)
+    jitter = np.random.default_rng(0)
+    for i, values in enumerate(data):
+        ax.scatter(
+            i + 1 + jitter.uniform(-0.12, 0.12, values.size),
+            values,
+            s=12,
+            color=COLOURS[treatments[i]],
+            zorder=3,
+        )
+    ax.set_ylabel("best fitness of the run")
+    ax.set_title(TASK_TITLES.get(task, task))
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_exploration(maps: ExplorationMaps, path: Path) -> Path:
+    plt = _pyplot()
+    rows, columns = maps.settings.rows, maps.settings.columns
+    k = len(maps.treatments)
+    fig, axes = plt.subplots(1, k, figsize=(3.2 * k + 0.8, 3.6), squeeze=False)
+    uy, ux = np.divmod(np.arange(maps.settings.units), columns)
+    finite = maps.percentile[np.isfinite(maps.percentile)]
+    vmin, vmax = (float(finite.min()), float(finite.max())) if finite.size else (0, 1)
+    if vmax <= vmin:
+        vmax = vmin + 1e-9
+    scale = MAX_CIRCLE_AREA / max(float(maps.mean_share.max()), 1e-12)
+    mappable = None
+    for i, treatment in enumerate(maps.treatments):
+        ax = axes[0, i]
+        share = maps.mean_share[i]
+        shown = share > 0
+        mappable = ax.scatter(
+            ux[shown],
+            uy[shown],
+            s=share[shown] * scale,
+            c=maps.percentile[i][shown],
+            cmap="viridis",
+            vmin=vmin,
+            vmax=vmax,
+            linewidths=0,
+        )
+        ax.scatter(
+            ux[maps.region],
+            uy[maps.region],
+            s=MAX_CIRCLE_AREA * 0.6,
+            facecolors="none",
+            edgecolors="red",
+            linewidths=0.6,
+        )
+        ax.set_xlim(-1, columns)
+        ax.set_ylim(-1, rows)
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(
+            f"{LABELS[treatment]} ({maps.shares[i].shape[0]} runs)", fontsize=9
+        )
+    if mappable is not None:
+        bar = fig.colorbar(mappable, ax=axes[0, :].tolist(), shrink=0.8)
+        bar.set_label(f"fitness, {maps.settings.fitness_percentile:g}th percentile")
+    fig.suptitle(
+        f"{TASK_TITLES.get(maps.task, maps.task)}: behaviour-space exploration "
+        f"({rows} x {columns} SOM; red: high-fitness region)",
+        fontsize=10,
+    )
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path

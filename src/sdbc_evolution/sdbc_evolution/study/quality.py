@@ -1,0 +1,182 @@
+"""Quality of the solutions: best-fitness curves, each run's best, Mann-Whitney U.
+
+The paper's figure 2 and its significance tests, from the run directories:
+
+- the **curve** of a run is the fitness of each generation's best individual
+  re-evaluated in fresh trials (``reevaluated_fitness``; without re-evaluation,
+  ``best_fitness``, which the selection of the best biases upwards); a treatment's
+  curve is the mean over its runs, with the standard error of that mean as a band;
+- the **best** of a run is the highest value of its curve: the best controller it
+  found, judged on fresh trials;
+- **Mann-Whitney U** (two-sided, ``scipy.stats.mannwhitneyu``) compares the bests of
+  every pair of treatments on a task. Besides U and p, the table gives the common
+  language effect size A = U / (n_a n_b), the chance that a run of treatment a beats
+  one of b (ties count half): 0.5 is no difference.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import mannwhitneyu
+
+from sdbc_evolution.config import Treatment
+from sdbc_evolution.study.rundirs import RunData, StudyData
+
+REEVALUATED = "reevaluated_fitness"
+"""Column of the re-evaluated best of each generation (the paper's curves)."""
+SELECTED = "best_fitness"
+"""Column of the best fitness as selection saw it (when there is no re-evaluation)."""
+
+
+def curve_column(run: RunData) -> str:
+    """The column a run's curve comes from (see the module docstring)."""
+    return REEVALUATED if np.isfinite(run.columns[REEVALUATED]).any() else SELECTED
+
+
+def run_curve(run: RunData) -> np.ndarray:
+    """(G,) the run's curve."""
+    return run.columns[curve_column(run)]
+
+
+def run_best(run: RunData) -> float:
+    """The highest value of the run's curve."""
+    return float(np.nanmax(run_curve(run)))
+
+
+@dataclass(frozen=True)
+class Curves:
+    """Best-fitness curves of the treatments on one task.
+
+    Attributes:
+        task: Task name.
+        treatments: Treatments, in the order of the arrays' first axis.
+        mean: (K, G) mean over runs of each generation's curve value.
+        sd: (K, G) standard deviation over runs (ddof 1; NaN with one run).
+        n: (K, G) runs that reached each generation.
+        sources: Curve column of each treatment's runs (see :func:`curve_column`).
+    """
+
+    task: str
+    treatments: tuple[Treatment, ...]
+    mean: np.ndarray
+    sd: np.ndarray
+    n: np.ndarray
+    sources: tuple[str, ...]
+
+    @property
+    def se(self) -> np.ndarray:
+        """Standard error of the mean, sd / sqrt(n)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.sd / np.sqrt(self.n)
+
+    @property
+    def generations(self) -> np.ndarray:
+        return np.arange(self.mean.shape[1])
+
+
+def best_curves(study: StudyData, task: str) -> Curves:
+    """Mean curve per treatment; runs of unequal length count where they reach."""
+    treatments = tuple(study.treatments(task))
+    length = max(r.generations for r in study.of(task))
+    k = len(treatments)
+    mean = np.full((k, length), np.nan)
+    sd = np.full((k, length), np.nan)
+    n = np.zeros((k, length), dtype=np.int64)
+    sources = []
+    for i, treatment in enumerate(treatments):
+        runs = study.of(task, treatment)
+        values = np.full((len(runs), length), np.nan)
+        for j, run in enumerate(runs):
+            curve = run_curve(run)
+            values[j, : curve.shape[0]] = curve
+        n[i] = np.isfinite(values).sum(axis=0)
+        with warnings.catch_warnings():
+            # A generation no run reached is NaN, as it should be.
+            warnings.simplefilter("ignore", RuntimeWarning)
+            mean[i] = np.nanmean(values, axis=0)
+            sd[i] = np.where(n[i] > 1, np.nanstd(values, axis=0, ddof=1), np.nan)
+        sources.append("/".join(sorted({curve_column(r) for r in runs})))
+    return Curves(task, treatments, mean, sd, n, tuple(sources))
+
+
+def run_bests(study: StudyData, task: str) -> dict[Treatment, np.ndarray]:
+    """Each run's best, per treatment (run order as found)."""
+    return {
+        t: np.array([run_best(r) for r in study.of(task, t)])
+        for t in study.treatments(task)
+    }
+
+
+@dataclass(frozen=True)
+class PairTest:
+    """A two-sided Mann-Whitney U test between the bests of two treatments.
+
+    Attributes:
+        task: Task name.
+        a: First treatment.
+        b: Second treatment.
+        n_a: Runs of a.
+        n_b: Runs of b.
+        median_a: Median best of a.
+        median_b: Median best of b.
+        mean_a: Mean best of a.
+        mean_b: Mean best of b.
+        u: U statistic of a.
+        p: Two-sided p-value.
+    """
+
+    task: str
+    a: Treatment
+    b: Treatment
+    n_a: int
+    n_b: int
+    median_a: float
+    median_b: float
+    mean_a: float
+    mean_b: float
+    u: float
+    p: float
+
+    @property
+    def effect(self) -> float:
+        """A = U / (n_a n_b): the chance a run of a beats one of b."""
+        return self.u / (self.n_a * self.n_b)
+
+
+def mann_whitney(
+    task: str, a: Treatment, b: Treatment, x: np.ndarray, y: np.ndarray
+) -> PairTest:
+    """The test of ``x`` (treatment a) against ``y`` (treatment b)."""
+    if x.size == 0 or y.size == 0:
+        raise ValueError(f"{task}: {a.value} or {b.value} has no runs to compare")
+    result = mannwhitneyu(x, y, alternative="two-sided")
+    p = float(result.pvalue)
+    if math.isnan(p):  # every value tied: no evidence of a difference
+        p = 1.0
+    return PairTest(
+        task=task,
+        a=a,
+        b=b,
+        n_a=int(x.size),
+        n_b=int(y.size),
+        median_a=float(np.median(x)),
+        median_b=float(np.median(y)),
+        mean_a=float(np.mean(x)),
+        mean_b=float(np.mean(y)),
+        u=float(result.statistic),
+        p=min(max(p, 0.0), 1.0),
+    )
+
+
+def pairwise_tests(task: str, bests: dict[Treatment, np.ndarray]) -> list[PairTest]:
+    """Every pair of treatments, in the paper's order (a before b)."""
+    return [
+        mann_whitney(task, a, b, bests[a], bests[b])
+        for a, b in itertools.combinations(bests, 2)
+        if bests[a].size and bests[b].size
+    ]

@@ -1,0 +1,143 @@
+"""Relevance of behaviour features: the paper's mutual information table.
+
+NS-SD+ weighs SDBC dimension k by w_k = delta + I(F; k) every generation, and the run
+directory records the weights in force (``weight:<name>`` columns of
+``generations.csv``). So each NS-SD+ run gives, per generation,
+
+    I_g(F; k) = w_{g,k} - delta
+
+in bits. The relevance of feature k in a run is its mean over the run's generations;
+the table gives the mean and SD of that over the runs, sorted by the mean, and marks
+the features that the task-specific characterisation also has.
+
+Which SDBC dimensions "the task-specific characterisation also has" is a judgement;
+it is made here, once, in :data:`TASK_SPECIFIC_FEATURES`: each task-specific feature
+maps to the SDBC dimensions that measure the same thing with the same aggregation (a
+feature averaged over the trial matches the (M) dimension, a final one the (F)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sdbc_evolution.config import Treatment
+from sdbc_evolution.results import WEIGHT_PREFIX
+from sdbc_evolution.study.rundirs import RunData, StudyData
+
+TASK_SPECIFIC_FEATURES: dict[str, dict[str, tuple[str, ...]]] = {
+    "gate_escape": {
+        "escaped fraction": ("Agent group size (F)",),
+        # The trial ends a fixed 75 steps after the gate starts closing.
+        "time the gate started closing": ("Simulation length",),
+        "mean distance to the gate": ("Agent-gate distance (M)",),
+        "mean dispersion": ("Agent dispersion (M)",),
+    },
+    "resource_sharing": {
+        "survivors": ("Agent group size (F)",),
+        "mean energy": ("Agent energy level (M)",),
+        "mean speed": ("Agent linear speed (M)",),
+        "mean distance to the station": ("Agent-station distance (M)",),
+    },
+    "predator_prey": {
+        "prey captured": ("Prey group size (F)",),
+        "trial length": ("Simulation length",),
+        "final predator-prey distance": ("Predators-prey distance (F)",),
+        "mean predator dispersion": ("Predators dispersion (M)",),
+    },
+}
+"""Per task: task-specific feature -> the SDBC dimensions that match it."""
+
+
+def task_specific_dimensions(task: str) -> frozenset[str]:
+    """SDBC dimensions of ``task`` that its task-specific characterisation has
+    (empty for a task without a mapping)."""
+    return frozenset(
+        name
+        for names in TASK_SPECIFIC_FEATURES.get(task, {}).values()
+        for name in names
+    )
+
+
+def run_information(run: RunData) -> np.ndarray:
+    """(D,) mean over the run's generations of I(F; k) = w_k - delta, in bits.
+
+    Raises:
+        ValueError: The run has no weights (not NS-SD+).
+    """
+    weights = np.column_stack(
+        [run.columns[WEIGHT_PREFIX + name] for name in run.sdbc_names]
+    )
+    recorded = np.isfinite(weights).all(axis=1)
+    if not recorded.any():
+        raise ValueError(f"{run.name}: no NS-SD+ weights in {WEIGHT_PREFIX}* columns")
+    return weights[recorded].mean(axis=0) - run.config.weighting.delta
+
+
+@dataclass(frozen=True)
+class RelevanceTable:
+    """Mutual information of every SDBC dimension with fitness on one task.
+
+    Attributes:
+        task: Task name.
+        names: (D,) dimension names, most relevant first.
+        mean: (D,) mean over runs of each run's mean I(F; k), bits.
+        sd: (D,) standard deviation over runs (ddof 1; NaN with one run).
+        runs: NS-SD+ runs it comes from.
+        in_task_specific: (D,) whether the task-specific characterisation has it.
+    """
+
+    task: str
+    names: tuple[str, ...]
+    mean: np.ndarray
+    sd: np.ndarray
+    runs: int
+    in_task_specific: np.ndarray
+
+    def top(self, n: int) -> RelevanceTable:
+        """The ``n`` most relevant dimensions."""
+        return RelevanceTable(
+            self.task,
+            self.names[:n],
+            self.mean[:n],
+            self.sd[:n],
+            self.runs,
+            self.in_task_specific[:n],
+        )
+
+    def rank_of(self, name: str) -> int | None:
+        """1-based rank of a dimension, None if absent."""
+        return self.names.index(name) + 1 if name in self.names else None
+
+
+def relevance_table(study: StudyData, task: str) -> RelevanceTable | None:
+    """The table from the task's NS-SD+ runs (None without any)."""
+    runs = study.of(task, Treatment.NS_SD_PLUS)
+    if not runs:
+        return None
+    names = runs[0].sdbc_names
+    for run in runs[1:]:
+        if run.sdbc_names != names:
+            raise ValueError(
+                f"{run.name}: SDBC dimensions differ from {runs[0].name}'s; "
+                "the runs are not of one task setting"
+            )
+    information = np.stack([run_information(r) for r in runs])  # (R, D)
+    mean = information.mean(axis=0)
+    sd = (
+        information.std(axis=0, ddof=1)
+        if len(runs) > 1
+        else np.full(mean.shape, np.nan)
+    )
+    order = np.argsort(-mean, kind="stable")
+    matched = task_specific_dimensions(task)
+    ordered = tuple(names[i] for i in order)
+    return RelevanceTable(
+        task=task,
+        names=ordered,
+        mean=mean[order],
+        sd=sd[order],
+        runs=len(runs),
+        in_task_specific=np.array([n in matched for n in ordered]),
+    )

@@ -1,0 +1,515 @@
+"""The Markdown report of an analysed study: our numbers beside the paper's claims.
+
+Sections: what ran (preset sizes beside the paper's, commands, wall time per task,
+runs left out), the claims one by one with our p-values and verdicts, one section per
+task (figures, tests, relevance, exploration), where and why we may differ, and the
+projection of the paper preset's wall time on a cluster.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shlex
+from collections import Counter
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from sdbc_evolution.config import DEFAULT_GENERATIONS, ExperimentConfig
+from sdbc_evolution.study.claims import (
+    LABELS,
+    PAPER_RELEVANCE,
+    TASK_TITLES,
+    Claim,
+    Verdict,
+)
+from sdbc_evolution.study.plan import STUDY_FILE
+from sdbc_evolution.study.presets import PAPER_RUNS, PresetError, load_preset_file
+from sdbc_evolution.study.relevance import TASK_SPECIFIC_FEATURES
+
+if TYPE_CHECKING:
+    from sdbc_evolution.study.analysis import Analysis, TaskAnalysis
+
+CLAIM_TOPICS = {
+    "quality": "Quality of the solutions (each run's best fitness)",
+    "relevance": "Relevance of behaviour features (MI of the NS-SD+ runs)",
+    "exploration": "Behaviour-space exploration (per-run numbers of the SOM maps)",
+}
+"""The report's claim tables, in the paper's order."""
+PAPER = ExperimentConfig()
+"""The paper's settings (SPEC.md), for the side-by-side sizes."""
+
+
+def _f(x: float, digits: int = 3) -> str:
+    return f"{x:.{digits}g}" if math.isfinite(x) else "n/a"
+
+
+def _p(p: float | None) -> str:
+    if p is None:
+        return ""
+    return "< 0.001" if p < 1e-3 else f"{p:.3f}"
+
+
+def _minutes(seconds: float) -> str:
+    return f"{seconds / 60:.1f} min"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return lines + [""]
+
+
+def _rel(path: Path, start: Path) -> str:
+    return Path(os.path.relpath(path, start)).as_posix()
+
+
+def _sizes(analysis: Analysis) -> list[str]:
+    study = analysis.study
+    rows = []
+    for ta in analysis.tasks:
+        config = study.of(ta.task)[0].config
+        runs = Counter(r.treatment for r in study.of(ta.task))
+        per_treatment = ", ".join(
+            f"{LABELS[t]} {runs[t]}" for t in ta.curves.treatments
+        )
+        paper_gens = DEFAULT_GENERATIONS.get(ta.task)
+        ours = (
+            config.ga.population_size
+            * config.evaluation.trials
+            * config.resolved_generations
+        )
+        paper = (
+            PAPER.ga.population_size * PAPER.evaluation.trials * paper_gens
+            if paper_gens
+            else float("nan")
+        )
+        rows.append(
+            [
+                TASK_TITLES.get(ta.task, ta.task),
+                per_treatment,
+                f"{config.ga.population_size} ({PAPER.ga.population_size})",
+                f"{config.evaluation.trials} ({PAPER.evaluation.trials})",
+                f"{config.evaluation.reevaluation_trials} "
+                f"({PAPER.evaluation.reevaluation_trials})",
+                f"{config.resolved_generations} ({paper_gens})",
+                f"{100 * ours / paper:.2g} %",
+            ]
+        )
+    return _table(
+        [
+            "task",
+            f"usable runs (paper: {PAPER_RUNS} each)",
+            "population (paper)",
+            "trials (paper)",
+            "re-evaluation trials (paper)",
+            "generations (paper)",
+            "trials per run, share of the paper's",
+        ],
+        rows,
+    )
+
+
+def _wall_times(analysis: Analysis) -> list[str]:
+    rows = []
+    for ta in analysis.tasks:
+        sessions = [s for s in analysis.sessions if s.get("task") == ta.task]
+        if sessions:
+            total = sum(float(s.get("elapsed_s", 0.0)) for s in sessions)
+            how = ", ".join(
+                f"{s.get('evaluator', '?')} x{s.get('concurrent_runs', '?')} on "
+                f"{s.get('cpu_count', '?')} cores"
+                + (" (interrupted)" if s.get("interrupted") else "")
+                for s in sessions
+            )
+            rows.append(
+                [
+                    TASK_TITLES.get(ta.task, ta.task),
+                    _minutes(total),
+                    str(len(sessions)),
+                    how,
+                ]
+            )
+        else:
+            rows.append(
+                [
+                    TASK_TITLES.get(ta.task, ta.task),
+                    f"not logged (runs' own wall time, summed: "
+                    f"{_minutes(ta.cost.run_seconds)})",
+                    "0",
+                    "",
+                ]
+            )
+    return _table(["task", "wall time", "sessions", "how"], rows)
+
+
+def _claims_table(claims: list[Claim]) -> list[str]:
+    rows = [
+        [
+            str(i + 1),
+            c.statement,
+            c.paper,
+            c.ours,
+            _p(c.p),
+            f"**{c.verdict.value}**",
+        ]
+        for i, c in enumerate(claims)
+    ]
+    return _table(["#", "claim", "paper", "ours", "our p", "verdict"], rows)
+
+
+def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
+    out = analysis.out
+    title = TASK_TITLES.get(ta.task, ta.task)
+    lines = [f"## {title[0].upper()}{title[1:]}", ""]
+    lines += [
+        f"![best fitness per generation]({_rel(ta.figures['curves'], out)}) "
+        f"![best of each run]({_rel(ta.figures['bests'], out)})",
+        "",
+        "Left: the best individual of each generation re-evaluated in fresh trials, "
+        "mean over runs, band +-1 standard error. Right: each run's best (the highest "
+        "point of its curve); boxes at the quartiles, whiskers at 1.5 IQR, dots are "
+        "runs.",
+        "",
+        "Mann-Whitney U (two-sided) on each run's best; A = U / (n_a n_b) is the "
+        "chance that a run of the first treatment beats one of the second.",
+        "",
+    ]
+    lines += _table(
+        ["a", "b", "median a", "median b", "mean a", "mean b", "U", "A", "p"],
+        [
+            [
+                LABELS[t.a],
+                LABELS[t.b],
+                _f(t.median_a),
+                _f(t.median_b),
+                _f(t.mean_a),
+                _f(t.mean_b),
+                _f(t.u),
+                f"{t.effect:.2f}",
+                _p(t.p),
+            ]
+            for t in ta.tests
+        ],
+    )
+    lines += _relevance_section(ta, analysis)
+    lines += _exploration_section(ta, analysis)
+    return lines
+
+
+def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
+    table = ta.relevance
+    lines = ["### Relevance of behaviour features", ""]
+    if table is None:
+        return lines + ["No usable NS-SD+ run: no weights to read.", ""]
+    n = analysis.settings.top_features
+    paper = {f.name: f for f in PAPER_RELEVANCE.get(ta.task, ())}
+    lines += [
+        f"Mutual information I(F; k) = weight - delta of the NS-SD+ runs "
+        f"({table.runs}), averaged over each run's generations; mean and SD over "
+        f"runs, bits. The {n} most relevant of {len(table.names)} dimensions; "
+        "the paper's values where its table lists the feature. Tick: the "
+        "task-specific characterisation has a matching feature (our mapping: "
+        + "; ".join(
+            f"{feature} = {', '.join(names)}"
+            for feature, names in TASK_SPECIFIC_FEATURES.get(ta.task, {}).items()
+        )
+        + ").",
+        "",
+    ]
+    top = table.top(n)
+    rows = []
+    for i, name in enumerate(top.names):
+        p = paper.get(name)
+        rows.append(
+            [
+                str(i + 1),
+                name,
+                f"{top.mean[i]:.2f}",
+                _f(top.sd[i], 2),
+                "yes" if top.in_task_specific[i] else "",
+                f"{p.mean:.2f} ({p.sd:.2f})" if p else "",
+            ]
+        )
+    lines += _table(
+        ["#", "feature", "mean MI", "SD MI", "in TS char.", "paper mean (SD)"], rows
+    )
+    missing = [f for f in PAPER_RELEVANCE.get(ta.task, ()) if f.name not in top.names]
+    notes = []
+    for f in missing:
+        rank = table.rank_of(f.name)
+        label = f.label or f.name
+        notes.append(
+            f"{label}: {f.mean:.2f} bits in the paper, ours "
+            f"{table.mean[rank - 1]:.2f} (#{rank})"
+            if rank
+            else f"{label}: not an SDBC dimension here"
+        )
+    if notes:
+        lines += ["The paper's other listed features: " + "; ".join(notes) + ".", ""]
+    return lines
+
+
+def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
+    maps = ta.maps
+    s = maps.settings
+    lines = [
+        "### Behaviour-space exploration",
+        "",
+        f"![exploration maps]({_rel(ta.figures['exploration'], analysis.out)})",
+        "",
+        f"A {s.rows} x {s.columns} SOM trained on {maps.sample_count} z-scored SDBC "
+        "vectors sampled evenly from every run (all generations, all treatments); "
+        "circle area: mean share of the treatment's individuals in the unit over its "
+        f"runs; colour: {s.fitness_percentile:g}th fitness percentile of those "
+        f"individuals; red rings: the high-fitness region (the "
+        f"{100 * s.high_fitness_units:g} % of occupied units with the highest "
+        "percentile over all treatments). Quantisation error "
+        f"{maps.quantisation_error:.2f} (z units).",
+        "",
+    ]
+    rows = []
+    for k, t in enumerate(maps.treatments):
+        u, c, h = maps.uniformity(k), maps.coverage(k), maps.region_share(k)
+        rows.append(
+            [
+                LABELS[t],
+                str(u.size),
+                f"{u.mean():.3f} +- {_sd(u):.3f}",
+                f"{c.mean():.3f} +- {_sd(c):.3f}",
+                f"{h.mean():.3f} +- {_sd(h):.3f}",
+            ]
+        )
+    lines += _table(
+        [
+            "treatment",
+            "runs",
+            "uniformity (normalised entropy)",
+            "units visited (share)",
+            "share in high-fitness region",
+        ],
+        rows,
+    )
+    return lines
+
+
+def _sd(x: np.ndarray) -> float:
+    return float(np.std(x, ddof=1)) if x.size > 1 else float("nan")
+
+
+def _differences(analysis: Analysis) -> list[str]:
+    claims = analysis.claims
+    counts = Counter(c.verdict for c in claims)
+    study = analysis.study
+    some = study.runs[0].config
+    runs = Counter((r.task, r.treatment) for r in study.runs)
+    least = min(runs.values())
+    tasks = [ta.task for ta in analysis.tasks]
+    generations = " / ".join(
+        str(study.of(t)[0].config.resolved_generations) for t in tasks
+    )
+    paper_generations = " / ".join(str(DEFAULT_GENERATIONS.get(t, "?")) for t in tasks)
+    lines = [
+        "## Where we differ, and why we might",
+        "",
+        f"Of {len(claims)} claims: {counts[Verdict.AGREE]} agree, "
+        f"{counts[Verdict.DISAGREE]} disagree, {counts[Verdict.INCONCLUSIVE]} "
+        "inconclusive.",
+        "",
+    ]
+    disagreements = [c for c in claims if c.verdict is Verdict.DISAGREE]
+    if disagreements:
+        lines += ["Disagreements:", ""]
+        lines += [f"- {c.statement}: {c.ours}." for c in disagreements]
+        lines += [""]
+    lines += [
+        "Reasons that apply to every number above:",
+        "",
+        f"- **Scale.** Runs here have population {some.ga.population_size}, "
+        f"{some.evaluation.trials} trials and {generations} generations, against "
+        f"the paper's {PAPER.ga.population_size}, {PAPER.evaluation.trials} and "
+        f"{paper_generations}; and as few as {least} runs per treatment against "
+        f"{PAPER_RUNS}. Differences that need long evolution to open up (the paper's "
+        "NS-TS vs NS-SD+ gap is 'relatively small') cannot show, and a Mann-Whitney "
+        "test on so few runs has little power: *inconclusive* means our runs cannot "
+        "tell, not that the paper is wrong.",
+        "- **Physics.** Our robots are pymunk bodies driven by forces, colliding "
+        "physically; the authors' robots were kinematic (turn, then move; a blocked "
+        "move retried sideways). Pushing, sliding along walls and jams differ, and "
+        "with them the fitness landscape and the behaviours there are to find.",
+        "- **Task details.** The paper's parameter table is lost; the tasks follow "
+        "SPEC.md, i.e. the authors' code where the paper is silent, and the paper's "
+        "fitness formulas (gate escape uses (g + t/tau)/(1 + N), not the code's "
+        "variant).",
+        "- **Mutual information.** Fitness in 10 k-means clusters, features in 10 "
+        "equal-width bins, estimated on one population of "
+        f"{some.ga.population_size}: with few individuals per cell the plug-in "
+        "estimate is biased upwards and its scale is not the paper's (a Weka "
+        "discretisation on 200 individuals); compare ranks rather than bits.",
+        "- **Curves.** Re-evaluation in "
+        f"{some.evaluation.reevaluation_trials} fresh trials (the paper: up to "
+        f"{PAPER.evaluation.reevaluation_trials}), harmonic mean as in the authors' "
+        "code.",
+        "- **Maps.** minisom instead of R's kohonen, fitness percentile "
+        f"{analysis.settings.som.fitness_percentile:g} as in the authors' scripts; "
+        "the high-fitness region is our explicit rule where the paper circled one by "
+        "eye. With short runs, early (random) generations weigh more in every map.",
+        "",
+    ]
+    return lines
+
+
+def _projection(analysis: Analysis) -> list[str]:
+    lines = [
+        "## Cost, and the paper's study on a cluster",
+        "",
+        "Measured in the run directories (`wall_time`, `evaluation_time`, trial "
+        "lengths from the SDBC's 'Simulation length', workers from `study_run.json`); "
+        "a robot-step is one body of one trial advanced one step. Rates are those "
+        "of this study's batch sizes; the engine does more per step on the paper's "
+        "larger batches (2000 trials a generation), so the projection errs on the "
+        "long side.",
+        "",
+    ]
+    lines += _table(
+        [
+            "task",
+            "runs",
+            "robot-steps/s per worker",
+            "s per generation (ours)",
+            "generations/s",
+            "serial s per individual",
+            "mean trial length (max)",
+        ],
+        [
+            [
+                TASK_TITLES.get(c.task, c.task),
+                str(c.runs),
+                f"{c.rate:,.0f}",
+                f"{c.seconds_per_generation:.3f}",
+                f"{c.generations_per_second:.2f}",
+                f"{c.serial_per_individual * 1e3:.2f} ms",
+                f"{c.mean_length:.0f} ({c.max_steps})",
+            ]
+            for c in (ta.cost for ta in analysis.tasks)
+        ],
+    )
+    if not analysis.projections:
+        return lines
+    lines += [
+        "Projected wall time of the `paper` preset (SPEC.md: 20 runs x 4 treatments, "
+        "population 200, 10 trials, 50 re-evaluation trials, 500/750/750 "
+        "generations) run by `sdbc-study run --preset paper --scheduler ADDRESS` on a "
+        "Dask cluster of W workers, runs one after the other, each generation's "
+        "controllers spread over min(W, 200) workers: T(W) = runs x treatments x G x "
+        "(c N + B L (N T + T_r) / (r min(W, N))), r and c as measured above, L the "
+        "measured mean trial length (expected) or max_steps (bound). CPU hours / W is "
+        "what running many runs side by side could approach. Dask's overhead and "
+        "longer or shorter trials of better-evolved controllers are not modelled.",
+        "",
+    ]
+    workers = sorted({p.workers for p in analysis.projections})
+    by_task: dict[str, dict[int, tuple[float, float, float]]] = {}
+    for p in analysis.projections:
+        by_task.setdefault(p.task, {})[p.workers] = (
+            p.expected_hours,
+            p.bound_hours,
+            p.cpu_hours,
+        )
+    rows = []
+    for task, values in by_task.items():
+        cpu = next(iter(values.values()))[2]
+        rows.append(
+            [TASK_TITLES.get(task, task), f"{cpu:,.0f}"]
+            + [f"{values[w][0]:,.1f} ({values[w][1]:,.1f})" for w in workers]
+        )
+    totals = (
+        [sum(by_task[t][w][0] for t in by_task) for w in workers],
+        [sum(by_task[t][w][1] for t in by_task) for w in workers],
+    )
+    rows.append(
+        [
+            "**all tasks**",
+            f"{sum(next(iter(v.values()))[2] for v in by_task.values()):,.0f}",
+        ]
+        + [f"{e:,.1f} ({b:,.1f})" for e, b in zip(*totals, strict=True)]
+    )
+    lines += _table(
+        ["task", "CPU hours"] + [f"hours on W = {w} (bound)" for w in workers], rows
+    )
+    return lines
+
+
+def _preset_line(analysis: Analysis) -> list[str]:
+    path = analysis.study.root / STUDY_FILE
+    if not path.is_file():
+        return ["No `study.yaml`: the runs were not made by `sdbc-study run`.", ""]
+    try:
+        preset = load_preset_file(path)
+    except PresetError as error:
+        return [f"`study.yaml` unreadable: {error}", ""]
+    return [
+        f"Preset **{preset.name}** (study seed {preset.seed}): {preset.description}",
+        "",
+    ]
+
+
+def write_report(
+    analysis: Analysis, path: Path, command: list[str] | None = None
+) -> Path:
+    """Writes the Markdown report of ``analysis`` to ``path``."""
+    study = analysis.study
+    lines = [
+        "# Replication of Gomes, Mariano & Christensen (ALIFE 2014): our numbers",
+        "",
+        "Novelty search with systematically derived behaviour characterisations "
+        "(SDBC), replicated with sdbc. Every number, table and figure below comes "
+        "from the run directories of the study; the paper's claims are set beside "
+        "ours one by one.",
+        "",
+    ]
+    lines += _preset_line(analysis)
+    lines += ["## What ran", ""]
+    lines += _sizes(analysis)
+    lines += ["Wall time per task, from the study log (`study_log.jsonl`):", ""]
+    lines += _wall_times(analysis)
+    commands = list(
+        dict.fromkeys(
+            shlex.join(s["command"]) for s in analysis.sessions if s.get("command")
+        )
+    )
+    if commands or command:
+        lines += ["Commands:", "", "```"]
+        lines += commands
+        if command:
+            lines += [shlex.join(command)]
+        lines += ["```", ""]
+    expected = f" of {study.expected} expected" if study.expected is not None else ""
+    lines += [f"{len(study.runs)} usable runs{expected}.", ""]
+    if analysis.problems:
+        lines += ["Runs left out:", ""]
+        lines += [f"- `{p.name}`: {p.reason}" for p in analysis.problems]
+        lines += [""]
+    lines += ["## The paper's claims, one by one", ""]
+    lines += [
+        f"Verdicts at alpha = {analysis.settings.alpha}: *agree* when our "
+        "two-sided Mann-Whitney test is significant in the paper's direction (or, for "
+        "a claim of no difference, not significant), *disagree* when it says the "
+        "opposite, *inconclusive* when our runs cannot tell; A = U / (n_a n_b) is "
+        "the chance that a run of the first treatment beats one of the second. The "
+        "rules are in `sdbc_evolution/study/claims.py`.",
+        "",
+    ]
+    for topic, heading in CLAIM_TOPICS.items():
+        claims = [c for c in analysis.claims if c.topic == topic]
+        if claims:
+            lines += [f"### {heading}", ""]
+            lines += _claims_table(claims)
+    for ta in analysis.tasks:
+        lines += _task_section(ta, analysis)
+    lines += _differences(analysis)
+    lines += _projection(analysis)
+    path.write_text("\n".join(lines))
+    return path

@@ -1,0 +1,279 @@
+"""Reading a study's run directories for the analysis, and saying which are unusable.
+
+The analysis knows runs only through the output layout of
+:mod:`sdbc_evolution.results`: any directory under the study directory holding a
+``config.yaml`` is a run (hidden directories such as ``.discarded`` excepted), its
+task and treatment are read from that file. A run is usable when every generation the
+configuration asks for is there, whole: ``generations.csv`` parses, has one row per
+generation, numbered 0, 1, ...; every ``individuals/gen_NNNNN.npz`` opens and holds
+``fitness`` (N,) and ``sdbc`` (N, D) with D the CSV's weight columns. Anything else
+(a run still going, a truncated CSV, a corrupt npz, a missing file) makes the run a
+:class:`RunProblem`, reported by name; the analysis goes on without it. If the study
+directory has ``study.yaml``, runs its preset expects but that are not there are
+reported too.
+
+Reading a run checks every file once, keeping per generation only what is small
+(fitness, the sum of trial lengths); the SDBC vectors are read again, one generation
+at a time, by whoever needs them (:meth:`RunData.sdbc_generations`).
+"""
+
+from __future__ import annotations
+
+import csv
+import zipfile
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sdbc_evolution.config import (
+    DEFAULT_GENERATIONS,
+    ConfigError,
+    ExperimentConfig,
+    Treatment,
+    load_config,
+)
+from sdbc_evolution.results import (
+    BASE_COLUMNS,
+    CONFIG_FILE,
+    GENERATIONS_FILE,
+    INDIVIDUALS_DIR,
+    WEIGHT_PREFIX,
+)
+from sdbc_evolution.study.plan import STUDY_FILE, study_plan
+from sdbc_evolution.study.presets import PresetError, load_preset_file
+
+LENGTH_DIMENSION = "Simulation length"
+"""The SDBC dimension holding a controller's mean trial length in steps."""
+
+
+@dataclass(frozen=True)
+class RunProblem:
+    """A run the analysis leaves out, and why.
+
+    Attributes:
+        name: The run's path relative to the study directory.
+        reason: What is wrong, in a sentence.
+    """
+
+    name: str
+    reason: str
+
+
+@dataclass
+class RunData:
+    """One usable run.
+
+    Attributes:
+        name: Path relative to the study directory.
+        path: The run directory.
+        config: Its configuration.
+        columns: ``generations.csv`` as float columns (empty cells NaN).
+        sdbc_names: The SDBC dimension names (from the weight columns).
+        fitness: One (N,) array per generation.
+        trial_steps: (G,) total trial steps of each generation's population
+            (sum over individuals of mean trial length x trials).
+    """
+
+    name: str
+    path: Path
+    config: ExperimentConfig
+    columns: dict[str, np.ndarray]
+    sdbc_names: tuple[str, ...]
+    fitness: list[np.ndarray] = field(repr=False)
+    trial_steps: np.ndarray = field(repr=False)
+
+    @property
+    def task(self) -> str:
+        return self.config.task
+
+    @property
+    def treatment(self) -> Treatment:
+        return self.config.treatment
+
+    @property
+    def generations(self) -> int:
+        return len(self.fitness)
+
+    def sdbc_generations(self) -> Iterator[np.ndarray]:
+        """The raw SDBC vectors (N, D) float32 of each generation, in order."""
+        for g in range(self.generations):
+            with np.load(_individuals_path(self.path, g)) as data:
+                yield np.asarray(data["sdbc"])
+
+
+def _individuals_path(run: Path, generation: int) -> Path:
+    return run / INDIVIDUALS_DIR / f"gen_{generation:05d}.npz"
+
+
+def find_runs(root: Path) -> list[Path]:
+    """Every run directory under ``root`` (hidden directories skipped), sorted."""
+    found = []
+    for config in sorted(root.rglob(CONFIG_FILE)):
+        relative = config.parent.relative_to(root)
+        if any(part.startswith(".") for part in relative.parts):
+            continue
+        found.append(config.parent)
+    return found
+
+
+def _read_csv(path: Path) -> tuple[list[str], list[list[float]]]:
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        raise ValueError(f"{GENERATIONS_FILE} is empty")
+    header, body = rows[0], rows[1:]
+    if tuple(header[: len(BASE_COLUMNS)]) != BASE_COLUMNS:
+        raise ValueError(f"{GENERATIONS_FILE} has an unknown header")
+    data = []
+    for i, row in enumerate(body):
+        if len(row) != len(header):
+            raise ValueError(
+                f"{GENERATIONS_FILE} row {i + 1} has {len(row)} cells, the header "
+                f"{len(header)} (truncated?)"
+            )
+        try:
+            data.append([float(c) if c else np.nan for c in row])
+        except ValueError:
+            raise ValueError(
+                f"{GENERATIONS_FILE} row {i + 1} holds a value that is not a number"
+            ) from None
+    return header, data
+
+
+def load_run(path: Path, root: Path) -> RunData | RunProblem:
+    """Reads and checks one run directory (see the module docstring)."""
+    name = str(path.relative_to(root))
+    try:
+        config = load_config(path / CONFIG_FILE).resolved()
+    except ConfigError as error:
+        return RunProblem(name, f"{CONFIG_FILE} unusable: {error}")
+    if not (path / GENERATIONS_FILE).is_file():
+        return RunProblem(name, f"{GENERATIONS_FILE} is missing")
+    try:
+        header, data = _read_csv(path / GENERATIONS_FILE)
+    except (OSError, ValueError, csv.Error) as error:
+        return RunProblem(name, str(error))
+    expected = config.resolved_generations
+    if len(data) != expected:
+        return RunProblem(
+            name,
+            f"truncated: {GENERATIONS_FILE} has {len(data)} of {expected} generations",
+        )
+    columns = {h: np.array([row[i] for row in data]) for i, h in enumerate(header)}
+    if not np.array_equal(columns["generation"], np.arange(expected)):
+        return RunProblem(
+            name, f"{GENERATIONS_FILE} generations are not 0..{expected - 1}"
+        )
+    sdbc_names = tuple(
+        h[len(WEIGHT_PREFIX) :] for h in header if h.startswith(WEIGHT_PREFIX)
+    )
+    try:
+        length_index = sdbc_names.index(LENGTH_DIMENSION)
+    except ValueError:
+        return RunProblem(name, f"no {LENGTH_DIMENSION!r} SDBC dimension")
+    trials = config.evaluation.trials
+    fitness, steps = [], np.zeros(expected)
+    for g in range(expected):
+        file = _individuals_path(path, g)
+        where = f"{INDIVIDUALS_DIR}/{file.name}"
+        if not file.is_file():
+            return RunProblem(name, f"{where} is missing")
+        try:
+            with np.load(file) as npz:
+                f = np.asarray(npz["fitness"], dtype=np.float64)
+                sdbc = np.asarray(npz["sdbc"])
+        except (
+            OSError,
+            ValueError,
+            KeyError,
+            EOFError,
+            zipfile.BadZipFile,
+            zlib.error,
+        ) as error:
+            return RunProblem(
+                name, f"{where} unreadable ({type(error).__name__}: {error})"
+            )
+        if f.ndim != 1 or sdbc.shape != (f.shape[0], len(sdbc_names)):
+            return RunProblem(
+                name,
+                f"{where}: fitness {f.shape} and sdbc {sdbc.shape} do not fit "
+                f"{len(sdbc_names)} SDBC dimensions",
+            )
+        if not np.isfinite(f).all():
+            return RunProblem(name, f"{where}: fitness holds NaN or infinity")
+        fitness.append(f)
+        steps[g] = float(np.sum(sdbc[:, length_index], dtype=np.float64)) * trials
+    return RunData(name, path, config, columns, sdbc_names, fitness, steps)
+
+
+@dataclass
+class StudyData:
+    """The usable runs of a study directory and the problems found.
+
+    Attributes:
+        root: The study directory.
+        runs: Usable runs.
+        problems: Runs left out (unusable, or expected and absent).
+        expected: Runs the study's preset expects (None without ``study.yaml``).
+    """
+
+    root: Path
+    runs: list[RunData]
+    problems: list[RunProblem]
+    expected: int | None
+
+    def tasks(self) -> list[str]:
+        """Tasks with at least one usable run, the paper's first, in its order."""
+        found = set(r.task for r in self.runs)
+        known = [t for t in DEFAULT_GENERATIONS if t in found]
+        return known + sorted(found - set(known))
+
+    def of(self, task: str, treatment: Treatment | None = None) -> list[RunData]:
+        return [
+            r
+            for r in self.runs
+            if r.task == task and (treatment is None or r.treatment is treatment)
+        ]
+
+    def treatments(self, task: str) -> list[Treatment]:
+        """Treatments with usable runs on ``task``, in the paper's order."""
+        present = {r.treatment for r in self.of(task)}
+        return [t for t in Treatment if t in present]
+
+
+def load_study(root: str | Path) -> StudyData:
+    """Reads every run under ``root``; unusable and absent runs become problems."""
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"no study directory {root}")
+    runs: list[RunData] = []
+    problems: list[RunProblem] = []
+    for path in find_runs(root):
+        loaded = load_run(path, root)
+        (runs if isinstance(loaded, RunData) else problems).append(loaded)
+    expected = None
+    if (root / STUDY_FILE).is_file():
+        try:
+            preset = load_preset_file(root / STUDY_FILE)
+        except PresetError as error:
+            problems.append(RunProblem(STUDY_FILE, f"unreadable: {error}"))
+        else:
+            plan = study_plan(preset, root)
+            expected = len(plan)
+            seen = {r.path.resolve() for r in runs} | {
+                (root / p.name).resolve() for p in problems
+            }
+            for spec in plan:
+                if spec.path.resolve() not in seen:
+                    problems.append(
+                        RunProblem(str(spec.path.relative_to(root)), "missing")
+                    )
+    if not runs:
+        raise FileNotFoundError(
+            f"no usable run under {root}"
+            + "".join(f"\n  {p.name}: {p.reason}" for p in problems)
+        )
+    return StudyData(root, runs, problems, expected)

@@ -1,0 +1,155 @@
+"""The statistics behind the claims, on numbers worked out by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sdbc_evolution.config import Treatment
+from sdbc_evolution.study.claims import (
+    Verdict,
+    above,
+    no_difference,
+    not_below,
+    quality_claims,
+)
+from sdbc_evolution.study.cost import TaskCost, projected_hours
+from sdbc_evolution.study.exploration import (
+    ExplorationMaps,
+    SomSettings,
+    best_matching_units,
+)
+from sdbc_evolution.study.presets import StudyPreset
+from sdbc_evolution.study.quality import mann_whitney, pairwise_tests
+
+FIT, TS, SD, PLUS = (
+    Treatment.FIT,
+    Treatment.NS_TS,
+    Treatment.NS_SD,
+    Treatment.NS_SD_PLUS,
+)
+
+
+def test_mann_whitney_on_separated_and_tied_samples() -> None:
+    # 3 vs 3 fully separated: exact two-sided p = 2 / C(6, 3) = 0.1, U = 0.
+    test = mann_whitney("t", FIT, TS, np.array([1.0, 2, 3]), np.array([4.0, 5, 6]))
+    assert test.u == 0 and test.effect == 0
+    assert test.p == pytest.approx(0.1)
+    assert (test.median_a, test.median_b, test.mean_a, test.mean_b) == (2, 5, 2, 5)
+    tied = mann_whitney("t", FIT, TS, np.zeros(3), np.zeros(3))
+    assert tied.p == 1.0 and tied.effect == 0.5
+    with pytest.raises(ValueError, match="no runs"):
+        mann_whitney("t", FIT, TS, np.array([]), np.ones(2))
+
+
+def test_pairwise_tests_cover_every_pair_in_order() -> None:
+    bests = {t: np.arange(3.0) + i for i, t in enumerate(Treatment)}
+    tests = pairwise_tests("t", bests)
+    assert [(t.a, t.b) for t in tests] == [
+        (FIT, TS), (FIT, SD), (FIT, PLUS), (TS, SD), (TS, PLUS), (SD, PLUS),
+    ]  # fmt: skip
+
+
+def test_verdict_rules() -> None:
+    low, high = np.arange(10.0), np.arange(10.0) + 100
+    significant_up = mann_whitney("t", TS, FIT, high, low)
+    significant_down = mann_whitney("t", TS, FIT, low, high)
+    unclear = mann_whitney("t", TS, FIT, low, low + 0.5)
+    assert significant_up.p < 0.05 < unclear.p
+    assert above(significant_up) is Verdict.AGREE
+    assert above(significant_down) is Verdict.DISAGREE
+    assert above(unclear) is Verdict.INCONCLUSIVE
+    assert no_difference(unclear) is Verdict.AGREE
+    assert no_difference(significant_up) is Verdict.DISAGREE
+    assert not_below(significant_up) is Verdict.AGREE
+    assert not_below(unclear) is Verdict.AGREE
+    assert not_below(significant_down) is Verdict.DISAGREE
+
+
+def test_quality_claims_follow_the_paper_per_task() -> None:
+    rng = np.random.default_rng(0)
+    bests = {
+        FIT: rng.uniform(0.0, 0.1, 10),
+        TS: rng.uniform(0.9, 1.0, 10),
+        SD: rng.uniform(0.5, 0.6, 10),
+        PLUS: rng.uniform(0.7, 0.8, 10),
+    }
+    gate = {
+        c.statement: c.verdict
+        for c in quality_claims("gate_escape", pairwise_tests("gate_escape", bests))
+    }
+    assert gate["NS-TS above NS-SD+ in gate escape"] is Verdict.AGREE
+    assert (
+        gate["NS-SD+ reaches higher fitness than Fit in gate escape"] is Verdict.AGREE
+    )
+    # The paper: NS-SD and NS-SD+ differ only in resource sharing.
+    assert (
+        gate["NS-SD and NS-SD+ do not differ significantly in gate escape"]
+        is Verdict.DISAGREE
+    )
+    sharing = {
+        c.statement: c.verdict
+        for c in quality_claims(
+            "resource_sharing", pairwise_tests("resource_sharing", bests)
+        )
+    }
+    assert sharing["NS-SD+ above NS-SD in resource sharing"] is Verdict.AGREE
+    assert len(sharing) == len(gate) == 6
+
+
+def _maps(shares: np.ndarray, region: np.ndarray) -> ExplorationMaps:
+    settings = SomSettings(rows=2, columns=2)
+    return ExplorationMaps(
+        task="t",
+        settings=settings,
+        treatments=(FIT,),
+        run_names=(("a", "b"),),
+        shares=(shares,),
+        mean_share=shares.mean(axis=0)[None],
+        percentile=np.zeros((1, 4)),
+        pooled_percentile=np.zeros(4),
+        region=region,
+        sample_count=4,
+        quantisation_error=0.0,
+    )
+
+
+def test_uniformity_coverage_and_region_share() -> None:
+    shares = np.array([[0.25, 0.25, 0.25, 0.25], [1.0, 0.0, 0.0, 0.0]])
+    maps = _maps(shares, np.array([True, False, False, False]))
+    np.testing.assert_allclose(maps.uniformity(0), [1.0, 0.0])
+    np.testing.assert_allclose(maps.coverage(0), [1.0, 0.25])
+    np.testing.assert_allclose(maps.region_share(0), [0.25, 1.0])
+
+
+def test_best_matching_units_are_the_nearest_units() -> None:
+    rng = np.random.default_rng(1)
+    weights = rng.normal(size=(7, 3))
+    z = rng.normal(size=(5000, 3))
+    nearest = np.argmin(((z[:, None, :] - weights[None]) ** 2).sum(axis=2), axis=1)
+    np.testing.assert_array_equal(best_matching_units(weights, z), nearest)
+
+
+def test_projection_by_hand() -> None:
+    cost = TaskCost(
+        task="gate_escape",
+        runs=1,
+        bodies=4,
+        max_steps=1000,
+        mean_length=500.0,
+        rate=1e6,
+        serial_per_individual=1e-3,
+        seconds_per_generation=1.0,
+        run_seconds=1.0,
+    )
+    paper = StudyPreset(name="paper")
+    # 80 runs x 500 generations x (1e-3 x 200 + 4 x 500 x (200 x 10 + 50) / 1e6 / W).
+    count = 80 * 500
+    serial, evaluation = 0.2, 4 * 500 * 2050 / 1e6
+    for workers in (1, 8, 200):
+        wall, cpu = projected_hours(cost, paper, workers, 500.0)
+        assert wall == pytest.approx(count * (serial + evaluation / workers) / 3600)
+        assert cpu == pytest.approx(count * (serial + evaluation) / 3600)
+    # Beyond one worker per controller, more workers do not help.
+    assert projected_hours(cost, paper, 512, 500.0) == projected_hours(
+        cost, paper, 200, 500.0
+    )
