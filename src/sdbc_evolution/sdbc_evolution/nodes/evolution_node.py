@@ -62,7 +62,7 @@ from sdbc_evolution.cli import default_out, resolve_config
 from sdbc_evolution.config import ConfigError, ExperimentConfig
 from sdbc_evolution.evaluators import Evaluator, make_evaluator
 from sdbc_evolution.experiment import Experiment, task_spec
-from sdbc_evolution.nodes.graph_client import GraphClient, GraphClientError
+from sdbc_evolution.nodes.graph_client import GraphClient, GraphClientError, Stopped
 from sdbc_evolution.nodes.live_evaluator import LiveEvaluator
 from sdbc_evolution.results import GenerationRecord
 from sdbc_msgs.msg import GenerationStats
@@ -239,7 +239,7 @@ class EvolutionNode(Node):
                     record = experiment.step()
                     self._publish(experiment, record, population, started)
                     if self.replay_after_generation:
-                        self.replay()
+                        self._replay_or_stop_replaying()
             if not self.stop.is_set():
                 self.get_logger().info(f"run complete: results in {self.out}")
         except Exception as err:  # the thread's failure must reach the exit status
@@ -308,6 +308,17 @@ class EvolutionNode(Node):
         )
         self.get_logger().info(line)
         return line
+
+    def _replay_or_stop_replaying(self) -> None:
+        """A replay after a generation; if the graph cannot do it, the run goes
+        on without replays (they are for watching, the results do not need them)."""
+        try:
+            self.replay()
+        except Stopped:
+            raise
+        except GraphClientError as error:
+            self.replay_after_generation = False
+            self.get_logger().error(f"replay failed, no more replays: {error}")
 
     def _serve_replay(
         self, request: Trigger.Request, response: Trigger.Response

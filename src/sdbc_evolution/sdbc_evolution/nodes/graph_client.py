@@ -188,19 +188,27 @@ class GraphClient:
         self._streams_lock = threading.Lock()
         self._next_trial_id = time.time_ns()
 
-    def _deadline_wait(self, ready: Any, what: str, timeout: float) -> None:
+    def _wait_event(self, event: threading.Event, what: str, timeout: float) -> None:
+        """Waits for ``event``; Stopped if :attr:`stop` is set meanwhile,
+        GraphClientError naming ``what`` after ``timeout`` seconds."""
         deadline = time.monotonic() + timeout
-        while not ready():
+        while not event.wait(min(POLL, max(0.0, deadline - time.monotonic()))):
             if self.stop.is_set():
                 raise Stopped(f"stopped while waiting for {what}")
-            if time.monotonic() > deadline:
+            if time.monotonic() >= deadline:
                 raise GraphClientError(f"no {what} within {timeout:g} s")
-            time.sleep(POLL / 10)
+
+    def _wait_future(self, future: Any, what: str) -> Any:
+        """The result of an rclpy future, waited for as :meth:`_wait_event` does."""
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        if future.done():
+            done.set()
+        self._wait_event(done, what, self.timeout)
+        return future.result()
 
     def _call(self, client: Any, request: Any, what: str) -> Any:
-        future = client.call_async(request)
-        self._deadline_wait(future.done, what, self.timeout)
-        return future.result()
+        return self._wait_future(client.call_async(request), what)
 
     def wait_for_graph(self, timeout: float | None = None) -> None:
         """Waits until the simulator, every controller and the task state topic
@@ -239,11 +247,10 @@ class GraphClient:
     def check_task(self) -> None:
         """Raises GraphClientError unless the simulator runs this client's task
         with the same settings."""
-        self._deadline_wait(
-            self._simulator_parameters.service_is_ready,
-            "simulator parameter service",
-            self.timeout,
-        )
+        if not self._simulator_parameters.wait_for_service(self.timeout):
+            raise GraphClientError(
+                f"no simulator parameter service within {self.timeout:g} s"
+            )
         answer = self._call(
             self._simulator_parameters,
             GetParameters.Request(names=["task", "task_config"]),
@@ -271,10 +278,8 @@ class GraphClient:
             for client in self._controller_parameters
         ]
         for i, future in enumerate(futures):
-            self._deadline_wait(
-                future.done, f"answer from robot {i}'s controller", self.timeout
-            )
-            result = future.result().results[0]
+            answer = self._wait_future(future, f"answer from robot {i}'s controller")
+            result = answer.results[0]
             if not result.successful:
                 raise GenomeRejected(i, result.reason)
 
@@ -306,10 +311,8 @@ class GraphClient:
                 )
                 if not answer.success:
                     raise TrialFailed(answer.message)
-                self._deadline_wait(
-                    stream.done.is_set,
-                    f"last task state of trial {trial_id}",
-                    self.timeout,
+                self._wait_event(
+                    stream.done, f"last task state of trial {trial_id}", self.timeout
                 )
             finally:
                 with self._streams_lock:
