@@ -112,6 +112,21 @@ def test_nan_in_a_present_entity_is_named() -> None:
         extractor.observe(state)
 
 
+def test_nan_is_named_when_only_active_trials_are_computed() -> None:
+    extractor = SdbcExtractor(compact_below=1.0)
+    extractor.start(SMALL, 3)
+    state = small_state([[True, True, True]] * 3)
+    state.active = np.array([False, True, True])
+    state.groups[0].attributes[2, 1, 0] = NAN
+    with pytest.raises(ValueError, match=r"trial 2: feature 'Robots speed'"):
+        extractor.observe(state)
+
+
+def test_bad_settings_are_named() -> None:
+    with pytest.raises(ValueError, match="compact_below 1.5"):
+        SdbcExtractor(compact_below=1.5)
+
+
 def test_nan_in_an_ended_trial_is_ignored() -> None:
     extractor = SdbcExtractor()
     extractor.start(SMALL, 2)

@@ -121,3 +121,27 @@ def test_streaming_a_batch_equals_aggregating_each_trial(
         expected = aggregate_trial(samples[: lengths[b], b])
         np.testing.assert_allclose(result[b], expected, rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(extractor.lengths, lengths)
+
+
+@settings(max_examples=30, deadline=None)
+@given(DESCRIPTIONS, SEEDS, st.integers(1, 40), st.integers(1, 12))
+def test_computing_only_the_active_trials_changes_nothing(
+    description, seed, n_trials, n_steps
+):
+    rng = np.random.default_rng(seed)
+    lengths = rng.integers(1, n_steps + 1, n_trials)
+    # Never compact, always compact (every step gathers the active trials), and
+    # half way (compact once at most half of them are left).
+    extractors = [SdbcExtractor(compact_below=c) for c in (0.0, 1.0, 0.5)]
+    for extractor in extractors:
+        extractor.start(description, n_trials)
+    state = None
+    for step in range(1, n_steps + 1):
+        state = random_state(description, n_trials, rng, step=step, previous=state)
+        state.active = step <= lengths
+        for extractor in extractors:
+            extractor.observe(state)
+    reference = extractors[0].characterisations()
+    for extractor in extractors[1:]:
+        np.testing.assert_array_equal(extractor.characterisations(), reference)
+        np.testing.assert_array_equal(extractor.lengths, lengths)

@@ -92,6 +92,21 @@ class TrialAggregator:
         np.divide(total, np.maximum(count, 1.0, out=self._value), out=self._value)
         self._add(defined, active)
 
+    def update_trials(
+        self, trials: np.ndarray, total: np.ndarray, count: np.ndarray
+    ) -> None:
+        """Adds one step of the ``trials`` (n,) given as ``total / count``, both
+        (F, n), all of them active; the other trials are left as they are."""
+        defined = count > 0.0
+        value = np.divide(total, np.maximum(count, 1.0))
+        np.putmask(value, ~defined, 0.0)
+        self._sum[:, trials] += value
+        self._count[:, trials] += defined
+        last = self._last[:, trials]
+        np.putmask(last, defined, value)
+        self._last[:, trials] = last
+        self._length[trials] += 1
+
     def _add(self, defined: np.ndarray, active: np.ndarray) -> None:
         # Undefined and inactive values may be anything: overwritten, never added.
         # (np.putmask is several times faster than ufuncs with where=.)

@@ -48,14 +48,27 @@ class SdbcExtractor:
     never the trajectory, and can be reused for the next batch. The shapes of static
     groups are read at a batch's first step only: static entities never move.
 
+    The engine keeps stepping a batch until its last trial ends; once few trials
+    are left, only those are computed (gathered into a smaller batch), so the cost
+    of a step follows the trials that take it, as the engine's does.
+
     Args:
         check_values: Check, every step, that no present entity of an active trial
             has a NaN or infinite attribute or coordinate, and that every group's
             size is within its limits; off saves a few numpy reductions per step.
+        compact_below: Compute only the active trials once they are at most this
+            fraction of the batch (0 never, 1 always). Gathering them costs about
+            what it saves at a quarter of the batch (measured at 2000 trials on the
+            three tasks); at 5% it halves a step's cost.
     """
 
-    def __init__(self, check_values: bool = True) -> None:
+    def __init__(self, check_values: bool = True, compact_below: float = 0.25) -> None:
+        if not 0.0 <= compact_below <= 1.0:
+            raise ValueError(
+                f"SDBC extractor: compact_below {compact_below} must be in [0, 1]"
+            )
         self.check_values = check_values
+        self.compact_below = compact_below
         self._features: StepFeatures | None = None
         self._aggregator: TrialAggregator | None = None
         self._step = 0
@@ -103,19 +116,44 @@ class SdbcExtractor:
                 f"SDBC extractor, task {description.name!r}, step {state.step}: trial "
                 f"{int(np.flatnonzero(resumed)[0])} is active again after it ended"
             )
-        total, count = features.compute(state)
-        if self.check_values:
-            self._check(state, total)
-        self._aggregator.update_from_totals(total, count, active)
+        n_active = int(np.count_nonzero(active))
+        if n_active > self.compact_below * n_trials:
+            total, count = features.compute(state)
+            if self.check_values:
+                self._check(state, total)
+            self._aggregator.update_from_totals(total, count, active)
+        elif n_active > 0:
+            trials = np.flatnonzero(active)
+            total, count = features.compute(state, self._padded(trials))
+            total, count = total[:, :n_active], count[:, :n_active]
+            if self.check_values:
+                self._check(state, total, trials)
+            self._aggregator.update_trials(trials, total, count)
         self._step = state.step
         self._previous_active = active.copy()
 
-    def _check(self, state: TaskState, total: np.ndarray) -> None:
+    def _padded(self, trials: np.ndarray) -> np.ndarray:
+        """``trials`` padded by repeating the first to the next of a few sizes
+        (B/2, B/4, ...), so that the scratch arrays come in a few shapes only."""
+        size = self._aggregator.n_trials
+        while size // 2 >= trials.shape[0]:
+            size //= 2
+        padded = np.full(size, trials[0])
+        padded[: trials.shape[0]] = trials
+        return padded
+
+    def _check(
+        self, state: TaskState, total: np.ndarray, trials: np.ndarray | None = None
+    ) -> None:
+        """``total`` covers the batch, or only ``trials`` (all active)."""
         description = self._features.description
         active = state.active
-        bad = ~np.isfinite(total) & active
+        bad = (
+            ~np.isfinite(total) if trials is not None else ~np.isfinite(total) & active
+        )
         if bad.any():
-            f, trial = np.argwhere(bad)[0]
+            f, column = np.argwhere(bad)[0]
+            trial = column if trials is None else trials[column]
             raise ValueError(
                 f"SDBC extractor, task {description.name!r}, step {state.step}, trial "
                 f"{trial}: feature {self._features.features[f].name!r} is not "

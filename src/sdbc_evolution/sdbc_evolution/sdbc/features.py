@@ -32,11 +32,13 @@ import numpy as np
 from sdbc_sim.task_state import (
     EntityGroupSpec,
     Geometry,
+    GroupState,
     TaskDescription,
     TaskState,
 )
 
 from sdbc_evolution.sdbc.distance import (
+    Discs,
     Shapes,
     Workspace,
     entity_distance,
@@ -159,6 +161,11 @@ def behaviour_features(description: TaskDescription) -> tuple[BehaviourFeature, 
     return tuple(features)
 
 
+def _shared(shapes: Shapes) -> bool:
+    """The shapes are the same in every trial (a batch axis of 1)."""
+    return (shapes.x if isinstance(shapes, Discs) else shapes.ax).shape[-1] == 1
+
+
 def _zero_where(array: np.ndarray, mask: np.ndarray) -> None:
     """Sets ``array`` to 0 where the broadcast ``mask`` holds, in place.
 
@@ -263,6 +270,10 @@ class StepFeatures:
             step only and reuse it: static entities never move, so within one
             batch their shapes are fixed (their presence is still read every step).
             For a new batch, use a new instance.
+
+    ``compute(state, trials)`` computes the features of some trials only (the
+    active ones, once many trials have ended): a few gathers instead of
+    arithmetic on trials whose results are thrown away.
     """
 
     def __init__(
@@ -284,8 +295,7 @@ class StepFeatures:
             for f, feature in enumerate(self.features)
             if (c := self._constant_count(feature)) is not None
         }
-        self._total: np.ndarray | None = None
-        self._count: np.ndarray | None = None
+        self._buffers_by_size: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     @property
     def n_features(self) -> int:
@@ -294,12 +304,41 @@ class StepFeatures:
 
     def _buffers(self, n_trials: int) -> tuple[np.ndarray, np.ndarray]:
         """The (F, B) total and count arrays, with the constant counts filled in."""
-        if self._total is None or self._total.shape[1] != n_trials:
-            self._total = np.empty((self.n_features, n_trials))
-            self._count = np.empty((self.n_features, n_trials))
+        buffers = self._buffers_by_size.get(n_trials)
+        if buffers is None:
+            total = np.empty((self.n_features, n_trials))
+            count = np.empty((self.n_features, n_trials))
             for f, value in self._constant_counts.items():
-                self._count[f] = value
-        return self._total, self._count
+                count[f] = value
+            buffers = self._buffers_by_size[n_trials] = (total, count)
+        return buffers
+
+    def _gather(self, state: TaskState, trials: np.ndarray) -> TaskState:
+        """The state of ``trials`` only, as a batch of their own (all active)."""
+        ws = self._workspace
+        n_trials = state.active.shape[0]
+
+        def take(g: int, name: str, array: np.ndarray | None) -> np.ndarray | None:
+            if array is None or array.shape[0] != n_trials:
+                return array  # shared by every trial
+            out = ws.get(
+                ("gathered", g, name), trials.shape + array.shape[1:], array.dtype
+            )
+            return np.take(array, trials, axis=0, out=out)
+
+        groups = tuple(
+            GroupState(
+                present=take(g, "present", group.present),
+                attributes=take(g, "attributes", group.attributes),
+                centres=take(g, "centres", group.centres),
+                radii=take(g, "radii", group.radii),
+                segments=take(g, "segments", group.segments),
+            )
+            for g, group in enumerate(state.groups)
+        )
+        active = ws.get("gathered active", trials.shape, np.bool_)
+        active.fill(True)
+        return TaskState(step=state.step, active=active, groups=groups)
 
     def _constant_count(self, feature: BehaviourFeature) -> float | None:
         """The count of a feature whose entities or pairs are always all there."""
@@ -317,9 +356,16 @@ class StepFeatures:
             return n * groups[feature.other].max_size
         return None
 
-    def compute(self, state: TaskState) -> tuple[np.ndarray, np.ndarray]:
+    def compute(
+        self, state: TaskState, trials: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(total, count)``, both (F, B) float64, for one step; the arrays are
-        overwritten by the next call.
+        overwritten by the next call with as many trials.
+
+        Args:
+            state: The task state of the batch.
+            trials: Indices of the trials to compute, all active (B = their
+                number); None for the whole batch.
 
         Raises:
             ValueError: If a full group misses an entity in an active trial.
@@ -327,6 +373,8 @@ class StepFeatures:
         groups = self.description.groups
         full = self._full
         ws = self._workspace
+        if trials is not None:
+            state = self._gather(state, trials)
         total, count = self._buffers(state.active.shape[0])
         present: dict[int, np.ndarray] = {}
         absent: dict[int, np.ndarray] = {}
@@ -367,8 +415,12 @@ class StepFeatures:
             if g in shapes:
                 return shapes[g]
             fixed = self.fixed_static_geometry and groups[g].is_static
-            if fixed and g in self._static_shapes:
-                shapes[g] = self._static_shapes[g]
+            cached = self._static_shapes.get(g) if fixed else None
+            if cached is not None and (trials is None or _shared(cached)):
+                shapes[g] = cached
+            elif fixed and trials is not None:
+                # Per-trial static shapes of some trials: from the gathered state.
+                shapes[g] = group_shapes(state.groups[g], groups[g].geometry, ws, g)
             else:
                 key = ("static", g) if fixed else g
                 shapes[g] = group_shapes(state.groups[g], groups[g].geometry, ws, key)
