@@ -1,0 +1,89 @@
+"""``sdbc-study``: bad input exits 2 with a clear message before any run; a run that
+fails is named and the others go on."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from sdbc_evolution.study import runner
+from sdbc_evolution.study.cli import main
+from sdbc_evolution.study.plan import RunState, run_status, study_plan
+from sdbc_evolution.study.presets import StudyPreset
+from sdbc_evolution.study.runner import Execution, run_study
+from study_helpers import TINY
+
+
+@pytest.fixture
+def tiny_file(tmp_path: Path) -> Path:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(TINY))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "--preset", "huge"], "unknown preset 'huge'"),
+        (["run", "--preset", "smoke", "--task", "football"], "--task football"),
+        (["run", "--preset", "smoke", "--workers", "0"], "at least 1"),
+        (["measure", "--preset", "smoke", "--generations", "1"], "--generations"),
+    ],
+)
+def test_bad_input_exits_2_before_any_run(
+    args: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "study"
+    assert main([*args, "--out", str(out)] if args[0] == "run" else args) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_study_directory_of_another_preset_exits_2(
+    tiny_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "study"
+    out.mkdir()
+    (out / "study.yaml").write_text("name: other\n")
+    assert main(["run", "--preset", str(tiny_file), "--out", str(out)]) == 2
+    assert "another preset" in capsys.readouterr().err
+
+
+def test_a_failing_run_is_named_and_the_others_finish(
+    tiny_preset: StudyPreset, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    root = tmp_path / "study"
+    doomed = study_plan(tiny_preset, root)[2].name
+    original = runner.Experiment.create
+
+    def create(config, out_dir, evaluator, info=None):
+        if str(out_dir).endswith(doomed):
+            raise RuntimeError("the disk is on fire")
+        return original(config, out_dir, evaluator, info)
+
+    monkeypatch.setattr(runner.Experiment, "create", create)
+    said: list[str] = []
+    outcome = run_study(
+        tiny_preset, root, execution=Execution(workers=1), quiet=True, say=said.append
+    )
+    assert [r.name for r in outcome.failed] == [doomed]
+    assert any(doomed in line and "the disk is on fire" in line for line in said)
+    states = {s.name: run_status(s).state for s in study_plan(tiny_preset, root)}
+    assert states.pop(doomed) is RunState.NEW
+    assert set(states.values()) == {RunState.FINISHED}
+
+
+def test_run_then_analyse_by_default(
+    tiny_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "study"
+    assert (
+        main(
+            ["--preset", str(tiny_file), "--out", str(out), "--workers", "1", "--quiet"]
+        )
+        == 0
+    )
+    printed = capsys.readouterr().out
+    assert f"study: {out.resolve()}" in printed
+    assert f"report: {(out / 'report' / 'report.md').resolve()}" in printed
