@@ -13,7 +13,8 @@ as ``run_batch``), then, at every step k = 1, 2, ...:
 2. steps the trial with those outputs, and publishes the readings for step k + 1;
 3. publishes the task state after step k (``task_state``, sdbc_msgs/TaskState)
    and, every ``marker_period`` steps, markers (``markers``,
-   visualization_msgs/MarkerArray), while the controllers compute step k + 1.
+   visualization_msgs/MarkerArray), while the controllers compute step k + 1;
+   a topic without subscribers is not built.
 
 The answer carries the trial's fitness, task-specific characterisation and length,
 or ``success = false`` and a message saying why the trial was aborted; the node then
@@ -225,14 +226,25 @@ class SimulatorNode(Node):
         return TrialOutcome(trial_id, fitness, characterisation, length)
 
     def _publish_state(self, trial_id: int, step: int, marker_period: int) -> None:
+        """Publishes the task state after ``step`` and, when due, the markers.
+
+        Building the messages costs more than a lockstep exchange, so it is skipped
+        for a topic that nobody subscribes to: there is no one to miss them.
+        """
         stepper = self._stepper
         done = stepper.done
+        markers_due = bool(marker_period) and (
+            step % marker_period == 0 or step == 1 or done
+        )
+        markers_due = markers_due and self._markers.get_subscription_count() > 0
+        if not (markers_due or self._task_state.get_subscription_count() > 0):
+            return
         msg = task_state_to_msg(
             stepper.state(), self.task.description, 0, trial_id, self.task.name, done
         )
         msg.header.stamp = self.get_clock().now().to_msg()
         self._task_state.publish(msg)
-        if marker_period and (step % marker_period == 0 or step == 1 or done):
+        if markers_due:
             self._markers.publish(markers_from_task_state(msg))
 
     def _serve(
