@@ -146,7 +146,10 @@ def test_som_shares_of_every_run_sum_to_one(smoke: Path) -> None:
                 visited = data["mean_share"][k] > 0
                 assert (np.isfinite(data["percentile"][k]) == visited).all()
                 assert len(data[f"runs_{treatment}"]) == SMOKE.runs
-            assert data["region"].any()
+            region, pooled = data["region"], data["pooled_percentile"]
+            assert np.isfinite(pooled[region]).all()
+            if region.any():
+                assert pooled[region].min() > np.nanmax(pooled[~region], initial=-1)
         rows = read_csv(smoke / "report" / TABLES_DIR / f"exploration_{task}.csv")
         for row in rows:
             assert 0.0 <= float(row["uniformity"]) <= 1.0

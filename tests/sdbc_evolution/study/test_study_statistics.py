@@ -17,6 +17,7 @@ from sdbc_evolution.study.exploration import (
     ExplorationMaps,
     SomSettings,
     best_matching_units,
+    high_fitness_region,
 )
 from sdbc_evolution.study.presets import StudyPreset
 from sdbc_evolution.study.quality import mann_whitney, pairwise_tests
@@ -153,3 +154,19 @@ def test_projection_by_hand() -> None:
     assert projected_hours(cost, paper, 512, 500.0) == projected_hours(
         cost, paper, 200, 500.0
     )
+
+
+def test_high_fitness_region_takes_the_top_units_and_never_the_floor() -> None:
+    nan = np.nan
+    pooled = np.array([0.2, 0.9, nan, 0.5, 0.9, 0.2, 0.3, 0.2, 0.2, 0.2, 0.4])
+    # 10 occupied units, 20 %: the two best (both 0.9).
+    np.testing.assert_array_equal(
+        np.flatnonzero(high_fitness_region(pooled, 0.2)), [1, 4]
+    )
+    # 30 %: the third best is 0.5, ties included.
+    np.testing.assert_array_equal(
+        np.flatnonzero(high_fitness_region(pooled, 0.3)), [1, 3, 4]
+    )
+    # Units at the floor never count, so an all-tied map has no region.
+    assert not high_fitness_region(np.full(5, 0.2), 0.5).any()
+    assert high_fitness_region(pooled, 1.0).sum() == 5

@@ -22,8 +22,8 @@ Two per-run numbers put the paper's reading of the maps to a test:
   "NS-SD is the most uniform");
 - **high-fitness share**: the share of the run's individuals in the high-fitness
   region, the ``high_fitness_units`` fraction of occupied units with the highest
-  pooled (all treatments) fitness percentile ("NS-SD+ spends more effort in the
-  high-fitness region than NS-SD").
+  pooled (all treatments) fitness percentile (:func:`high_fitness_region`; "NS-SD+
+  spends more effort in the high-fitness region than NS-SD").
 """
 
 from __future__ import annotations
@@ -183,6 +183,21 @@ def _percentiles(
     return out
 
 
+def high_fitness_region(pooled: np.ndarray, fraction: float) -> np.ndarray:
+    """(U,) bool: the ``fraction`` of occupied units with the highest ``pooled``
+    percentile, ties with the last one included, units at the lowest percentile
+    never (if every occupied unit ties, there is no high-fitness region)."""
+    occupied = pooled[np.isfinite(pooled)]
+    region = np.zeros(pooled.shape, dtype=bool)
+    if occupied.size == 0:
+        return region
+    n = max(1, int(round(fraction * occupied.size)))
+    threshold = np.sort(occupied)[::-1][n - 1]
+    with np.errstate(invalid="ignore"):
+        region[:] = (pooled >= threshold) & (pooled > occupied.min())
+    return region
+
+
 def exploration_maps(
     study: StudyData, task: str, settings: SomSettings | None = None
 ) -> ExplorationMaps:
@@ -240,11 +255,7 @@ def exploration_maps(
     pooled = _percentiles(
         np.concatenate(unit_lists), np.concatenate(fitness_lists), settings.units, q
     )
-    occupied = np.flatnonzero(np.isfinite(pooled))
-    n_region = max(1, int(round(settings.high_fitness_units * occupied.size)))
-    best_units = occupied[np.argsort(-pooled[occupied], kind="stable")[:n_region]]
-    region = np.zeros(settings.units, dtype=bool)
-    region[best_units] = True
+    region = high_fitness_region(pooled, settings.high_fitness_units)
     return ExplorationMaps(
         task=task,
         settings=settings,

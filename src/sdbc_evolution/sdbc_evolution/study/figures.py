@@ -99,7 +99,9 @@ def plot_exploration(maps: ExplorationMaps, path: Path) -> Path:
     plt = _pyplot()
     rows, columns = maps.settings.rows, maps.settings.columns
     k = len(maps.treatments)
-    fig, axes = plt.subplots(1, k, figsize=(3.2 * k + 0.8, 3.6), squeeze=False)
+    fig, axes = plt.subplots(
+        1, k, figsize=(2.8 * k + 1.2, 3.4), squeeze=False, layout="constrained"
+    )
     uy, ux = np.divmod(np.arange(maps.settings.units), columns)
     finite = maps.percentile[np.isfinite(maps.percentile)]
     vmin, vmax = (float(finite.min()), float(finite.max())) if finite.size else (0, 1)
@@ -138,7 +140,7 @@ def plot_exploration(maps: ExplorationMaps, path: Path) -> Path:
             f"{LABELS[treatment]} ({maps.shares[i].shape[0]} runs)", fontsize=9
         )
     if mappable is not None:
-        bar = fig.colorbar(mappable, ax=axes[0, :].tolist(), shrink=0.8)
+        bar = fig.colorbar(mappable, ax=axes[0, -1], shrink=0.8)
         bar.set_label(f"fitness, {maps.settings.fitness_percentile:g}th percentile")
     fig.suptitle(
         f"{TASK_TITLES.get(maps.task, maps.task)}: behaviour-space exploration "

@@ -177,6 +177,13 @@ def run_study(
     say = say or (lambda text: print(text, file=sys.stderr))
     root = Path(root)
     plan = study_plan(preset, root, tuple(tasks) if tasks is not None else None)
+    if execution.scheduler is not None:
+        # An unreachable scheduler fails here, before anything is written.
+        make_evaluator(
+            task_spec(plan[0].config),
+            scheduler=execution.scheduler,
+            timeout=execution.connect_timeout,
+        ).close()
     prepare_study_directory(preset, root)
     outcome = StudyOutcome()
     todo: list[tuple[RunSpec, int]] = []
@@ -201,7 +208,7 @@ def run_study(
                 continue
             started = time.time()
             results: list[RunOutcome] = []
-            interrupted = True  # unless the runs come back
+            aborted = ""
             try:
                 if execution.scheduler is not None:
                     results = _run_dask(task_todo, execution, progress)
@@ -209,7 +216,9 @@ def run_study(
                     results = _run_in_process(task_todo, progress)
                 else:
                     results = _run_processes(task_todo, execution, progress)
-                interrupted = any(r.interrupted for r in results)
+            except BaseException as error:
+                aborted = type(error).__name__
+                raise
             finally:
                 elapsed = time.time() - started
                 outcome.task_seconds[task] = elapsed
@@ -233,7 +242,9 @@ def run_study(
                         "worked_on": len(results),
                         "finished_now": sum(r.finished for r in results),
                         "failed": [r.name for r in results if r.error],
-                        "interrupted": interrupted,
+                        "interrupted": aborted == "KeyboardInterrupt"
+                        or any(r.interrupted for r in results),
+                        "aborted_by": aborted or None,
                     },
                 )
             outcome.ran.extend(results)
