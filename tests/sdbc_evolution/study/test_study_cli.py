@@ -87,3 +87,22 @@ def test_run_then_analyse_by_default(
     printed = capsys.readouterr().out
     assert f"study: {out.resolve()}" in printed
     assert f"report: {(out / 'report' / 'report.md').resolve()}" in printed
+
+
+def test_measure_probes_every_treatment_and_projects_the_study(
+    tiny_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sdbc_evolution.study.measure import probe, projected_task_seconds
+    from sdbc_evolution.study.presets import load_preset_file
+
+    preset = load_preset_file(tiny_file)
+    probes = probe(preset, "gate_escape", generations=2)
+    assert [p.treatment for p in probes] == ["fit", "ns-sd+"]
+    for p in probes:
+        assert p.cpu_per_generation > 0 and 0 < p.evaluation_share <= 1
+        assert 0 < p.mean_length <= p.max_steps == 60
+        assert p.worst_cpu_per_generation >= p.cpu_per_generation
+    expected = 2 * sum(2 * p.cpu_per_generation for p in probes) / 2
+    assert projected_task_seconds(preset, probes, 2, False) == pytest.approx(expected)
+    assert main(["measure", "--preset", str(tiny_file), "--generations", "2"]) == 0
+    assert "gate_escape: 2 generations; projected study time" in capsys.readouterr().out
