@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import os
 
 import pytest
@@ -18,9 +18,19 @@ def _isolate_dds() -> None:
 
 _isolate_dds()
 
-HAVE_ROS = all(
-    importlib.util.find_spec(name) is not None for name in ("rclpy", "sdbc_msgs")
-)
+
+def _have_ros() -> bool:
+    # Import rather than find_spec: tests/sdbc_msgs would pass for a namespace
+    # package called sdbc_msgs when the built interfaces are not on the path.
+    try:
+        importlib.import_module("rclpy")
+        importlib.import_module("sdbc_msgs.msg")
+    except ImportError:
+        return False
+    return True
+
+
+HAVE_ROS = _have_ros()
 
 
 def pytest_collection_modifyitems(
