@@ -22,6 +22,7 @@ setup(
             "recorder = sdbc_evolution.nodes.recorder_node:main",
             "sdbc-graph = sdbc_evolution.launch:main",
             "sdbc-evolve = sdbc_evolution.cli:main",
+            "sdbc-study = sdbc_evolution.study.cli:main",
         ],
     },
 )
