@@ -18,7 +18,8 @@ It then waits: for Ctrl-C, for a node process to exit (which stops the graph), o
 with ``--trial SEED`` (repeatable), for those trials, which it asks the simulator
 for and reports, and stops. Stopping sends SIGINT to every process, gives each
 ``shutdown_timeout`` seconds, kills what is left, and removes the shared-memory
-files of Fast DDS that killed processes leave in ``/dev/shm``.
+files that Fast DDS leaves in ``/dev/shm`` (after SIGKILL, and now and then after
+a clean exit): those created since the graph started that no process uses.
 
 Examples::
 
@@ -366,7 +367,6 @@ class ProcessGraph:
         self.env = dict(env) if env is not None else child_environment()
         self.running: dict[str, subprocess.Popen] = {}
         self._started_at = time.time()
-        self._killed = False
         self._logs: list[Any] = []
 
     def log_path(self, name: str) -> Path | None:
@@ -414,11 +414,10 @@ class ProcessGraph:
         popen = self.running[name]
         popen.kill()
         popen.wait()
-        self._killed = True
 
     def stop(self) -> dict[str, int]:
         """Stops every process: SIGINT, then SIGKILL after ``shutdown_timeout``;
-        cleans up after killed ones. Returns the exit codes."""
+        then removes the Fast DDS files they left. Returns the exit codes."""
         for popen in self.running.values():
             if popen.poll() is None:
                 with contextlib.suppress(ProcessLookupError):
@@ -431,11 +430,9 @@ class ProcessGraph:
             except subprocess.TimeoutExpired:
                 popen.kill()
                 codes[name] = popen.wait()
-                self._killed = True
-        if self._killed or any(
-            code < 0 and code != -signal.SIGINT for code in codes.values()
-        ):
-            remove_orphaned_dds_files(self._started_at)
+        # Fast DDS leaves shared-memory files behind after SIGKILL, and sometimes
+        # after a clean exit too (a port file that another process still mapped).
+        remove_orphaned_dds_files(self._started_at)
         for log in self._logs:
             log.close()
         self._logs.clear()
@@ -519,11 +516,13 @@ def run_trials(
     ran, 1 otherwise."""
     import rclpy
     from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
     from sdbc_sim.nodes.interface import RUN_TRIAL_SERVICE
 
     from sdbc_msgs.srv import RunTrial
 
-    rclpy.init()
+    # Ctrl-C stays a KeyboardInterrupt here: the launcher then stops the graph.
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = Node("graph_launcher")
     status = 0
     try:
@@ -555,8 +554,16 @@ def run_trials(
     return status
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # SIGTERM (a supervisor) stops the graph like Ctrl-C; and Ctrl-C works even
+    # where the launcher was started with SIGINT ignored (a shell's background job).
+    signal.signal(signal.SIGTERM, _interrupt)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         graph_file = load_graph_file(args.graph)
         if (

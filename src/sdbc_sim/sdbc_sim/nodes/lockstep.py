@@ -3,17 +3,17 @@
 At step k of trial n the simulator publishes robot i's readings (trial n, step k)
 on ``robot_<i>/sensors`` for every i (:meth:`Lockstep.publish`), then waits until
 every robot has answered on ``robot_<i>/command`` with a command for (n, k)
-(:meth:`Lockstep.gather`); only then does it step. A command
-for another trial or step is stale and ignored. If some robot has not answered
-within the timeout, the exchange fails with :class:`MissingCommands` naming them,
-so a dead controller aborts its trial instead of hanging it.
+(:meth:`Lockstep.gather`); only then does it step. A command for another trial or
+step is stale and ignored. If some robot has not answered within the timeout, the
+exchange fails with :class:`MissingCommands` naming them, so a dead controller
+aborts its trial instead of hanging it.
 
 The waiting bypasses the executor: the command subscriptions are waited on and
-taken directly through an rcl wait set (as ``rclpy.wait_for_message`` does),
-which costs a few microseconds per step instead of an executor round per
-message. The subscriptions belong to the caller's callback group; while a trial
-runs inside a callback of that (mutually exclusive) group the executor leaves
-them alone, so nothing else takes the commands.
+taken directly through an rcl wait set (as ``rclpy.wait_for_message`` does), far
+cheaper than an executor round in Python per message. The subscriptions belong to
+the caller's callback group; while a trial runs inside a callback of that
+(mutually exclusive) group the executor leaves them alone, so nothing else takes
+the commands.
 """
 
 from __future__ import annotations
