@@ -205,7 +205,9 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
 
 def main() -> None:
     args = parse_args()
+    # A graph of its own: this machine only, a domain no other graph is likely on.
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 100))
     from sdbc_sim.tasks import make_task
 
     task = make_task(args.task, max_steps=args.steps)
