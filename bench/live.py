@@ -7,8 +7,9 @@ single trial (same genome, same seed) is then run:
 - live: through the simulator's ``run_trial`` service, in lockstep with the
   controller processes; steps/s = trial length / wall time of the call, median
   over ``--repeat`` trials; first with nobody watching (the simulator then skips
-  building the task state and markers), then "observed", with this process
-  subscribed to both as a viewer or recorder would be (the target's figure);
+  building the task state and markers), then "observed", with the project's
+  recorder (a process of its own) writing both to a bag, which is checked to
+  hold every step (the target's figure);
 - stepper: the engine's one-trial stepper driven in this process with the
   network computed here (what the simulator does, without DDS);
 - batched: :func:`sdbc_sim.run_batch` on that one trial.
@@ -113,26 +114,20 @@ def run_trials(client, args, count: int) -> list[tuple[float, float, int]]:
 def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     """Live trials, {"unobserved": [...], "observed": [...]}: first with nobody
     subscribed to the task state and markers (the simulator then skips building
-    them), then with this process subscribed to both, as a viewer, a recorder or
-    the evolution node would be. Each entry is (steps/s, fitness, length)."""
+    them), then with the project's recorder writing both to a bag, as when a
+    trial is recorded or watched. Each entry is (steps/s, fitness, length)."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
+    from rosbags.highlevel import AnyReader
     from sdbc_evolution.launch import (
         ProcessGraph,
         child_environment,
         graph_processes,
         load_graph_file,
     )
-    from sdbc_sim.nodes.interface import (
-        DISPLAY_QOS,
-        MARKERS_TOPIC,
-        TASK_STATE_QOS,
-        TASK_STATE_TOPIC,
-    )
-    from visualization_msgs.msg import MarkerArray
+    from sdbc_sim.nodes.interface import RECORDER_NODE, TASK_STATE_TOPIC
 
-    from sdbc_msgs.msg import TaskState
     from sdbc_msgs.srv import RunTrial
 
     graph_file = tmp / "graph.yaml"
@@ -140,7 +135,10 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
         yaml.safe_dump(
             {
                 "sdbc_graph": {
-                    "ros__parameters": {"robots_per_process": args.robots_per_process}
+                    "ros__parameters": {
+                        "robots_per_process": args.robots_per_process,
+                        "record_topics": ["/task_state", "/markers"],
+                    }
                 },
                 "/**": {
                     "ros__parameters": {
@@ -158,9 +156,15 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     params.write_text(yaml.safe_dump(parsed.parameters))
     env = child_environment()
     env.setdefault("ROS_HOME", str(tmp / "ros_home"))
-    graph = ProcessGraph(graph_processes(parsed, params), log_dir=tmp / "logs", env=env)
+    bag = tmp / "bag"
+    graph = ProcessGraph(
+        graph_processes(parsed, params, record=bag), log_dir=tmp / "logs", env=env
+    )
     results: dict[str, list] = {}
-    with graph:
+    for name in graph.processes:
+        if name != "recorder":
+            graph.start(name)
+    try:
         rclpy.init()
         node = Node("bench_live")
         executor = SingleThreadedExecutor()
@@ -173,33 +177,30 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
                 sys.exit(f"the simulator did not come up; logs in {tmp / 'logs'}")
             run_trials(client, args, 1)  # warm-up: discovery, first allocations
             results["unobserved"] = run_trials(client, args, args.repeat)
-            received = {"states": 0}
-
-            def count(_: bytes) -> None:
-                received["states"] += 1
-
-            # Raw messages: the cost of watching is the transport's, not Python's.
-            node.create_subscription(
-                TaskState, TASK_STATE_TOPIC, count, TASK_STATE_QOS, raw=True
-            )
-            node.create_subscription(
-                MarkerArray, MARKERS_TOPIC, lambda _: None, DISPLAY_QOS, raw=True
-            )
-            time.sleep(1.0)  # discovery of the new subscriptions
-            run_trials(client, args, 1)
-            received["states"] = 0
+            graph.start("recorder")
+            deadline = time.monotonic() + 60.0
+            while not any(
+                info.node_name == RECORDER_NODE
+                for info in node.get_subscriptions_info_by_topic("/" + TASK_STATE_TOPIC)
+            ):
+                if time.monotonic() > deadline:
+                    sys.exit(f"the recorder did not come up; logs in {tmp / 'logs'}")
+                time.sleep(0.1)
+            time.sleep(1.0)  # the simulator's side of discovery
             results["observed"] = run_trials(client, args, args.repeat)
-            time.sleep(0.5)
-            expected = sum(length for _, _, length in results["observed"])
-            if received["states"] != expected:
-                sys.exit(
-                    f"task state messages: {received['states']} received, "
-                    f"{expected} published"
-                )
         finally:
             executor.shutdown()
             node.destroy_node()
             rclpy.try_shutdown()
+    finally:
+        graph.stop()
+    expected = sum(length for _, _, length in results["observed"])
+    with AnyReader([bag]) as reader:
+        recorded = sum(
+            c.msgcount for c in reader.connections if c.topic == "/task_state"
+        )
+    if recorded != expected:
+        sys.exit(f"task state messages: {recorded} recorded, {expected} published")
     return results
 
 
