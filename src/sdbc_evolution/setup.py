@@ -14,7 +14,10 @@ setup(
     zip_safe=True,
     maintainer="sdbc team",
     maintainer_email="sdbc@example.org",
-    description="Systematically derived behaviour characterisations (SDBC), novelty search, the GA and its experiments, and the evolution node.",
+    description=(
+        "Systematically derived behaviour characterisations (SDBC), novelty "
+        "search, the GA and its experiments, and the evolution node."
+    ),
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -14,7 +14,10 @@ setup(
     zip_safe=True,
     maintainer="sdbc team",
     maintainer_email="sdbc@example.org",
-    description="Batched pymunk simulation of robot teams: the gate escape, resource sharing and predator-prey tasks, and the simulator and controller nodes.",
+    description=(
+        "Batched pymunk simulation of robot teams: the gate escape, resource "
+        "sharing and predator-prey tasks, and the simulator and controller nodes."
+    ),
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

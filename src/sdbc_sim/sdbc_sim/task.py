@@ -24,7 +24,9 @@ robot inside a step). It declares, as attributes set in ``__init__``:
 - ``extent``: (x_min, y_min, x_max, y_max), a box no body centre can ever leave
   (for arenas without walls, allow for ``max speed x max_steps``); the engine sizes
   the trial slots from it;
-- ``max_steps`` and ``characterisation_size``.
+- ``max_steps``;
+- ``characterisation_names``: the names of the task-specific characterisation's
+  dimensions (each valued in [0, 1]), in the order ``results`` returns them.
 
 Then each step of a batch runs, in this order:
 
@@ -164,7 +166,12 @@ class Task(ABC):
     walls: np.ndarray
     extent: tuple[float, float, float, float]
     max_steps: int
-    characterisation_size: int
+    characterisation_names: tuple[str, ...]
+
+    @property
+    def characterisation_size(self) -> int:
+        """C, the length of the task-specific characterisation."""
+        return len(self.characterisation_names)
 
     @property
     def genome_length(self) -> int:

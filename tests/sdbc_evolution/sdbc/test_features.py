@@ -10,7 +10,6 @@ from sdbc_evolution.sdbc.features import (
     FeatureKind,
     StepFeatures,
     behaviour_features,
-    validate_task_state,
 )
 from sdbc_sim.task_state import (
     EntityGroupSpec,
@@ -18,6 +17,7 @@ from sdbc_sim.task_state import (
     GroupState,
     TaskDescription,
     TaskState,
+    validate_task_state,
 )
 from sdbc_states import (
     GATE_ESCAPE,

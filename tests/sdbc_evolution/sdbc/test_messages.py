@@ -9,14 +9,13 @@ import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_evolution.sdbc.features import StepFeatures
-from sdbc_evolution.sdbc.messages import (
-    MessageSdbcExtractor,
-    characterise_messages,
+from sdbc_evolution.sdbc.messages import MessageSdbcExtractor, characterise_messages
+from sdbc_sim.task_state import Geometry, TaskDescription
+from sdbc_sim.task_state_msgs import (
     task_description_from_msg,
     task_state_from_msg,
     task_state_to_msg,
 )
-from sdbc_sim.task_state import Geometry, TaskDescription
 from sdbc_states import (
     GATE_ESCAPE,
     PREDATOR_PREY,

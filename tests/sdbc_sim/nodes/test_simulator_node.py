@@ -81,9 +81,9 @@ def test_a_bad_task_config_stops_the_simulator_before_any_work(ros_home):
 
 
 def test_markers_draw_every_entity_of_the_task_state():
-    from sdbc_evolution.sdbc.messages import task_state_to_msg
     from sdbc_sim.engine import TrialStepper
     from sdbc_sim.nodes.markers import markers_from_task_state
+    from sdbc_sim.task_state_msgs import task_state_to_msg
     from sdbc_sim.tasks import make_task
     from visualization_msgs.msg import Marker
 

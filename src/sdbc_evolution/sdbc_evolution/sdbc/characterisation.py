@@ -12,14 +12,10 @@ counts and last values. At the end, every trial has a raw characterisation of le
 from __future__ import annotations
 
 import numpy as np
-from sdbc_sim.task_state import TaskDescription, TaskState
+from sdbc_sim.task_state import TaskDescription, TaskState, validate_task_state
 
 from sdbc_evolution.sdbc.aggregation import TrialAggregator
-from sdbc_evolution.sdbc.features import (
-    StepFeatures,
-    behaviour_features,
-    validate_task_state,
-)
+from sdbc_evolution.sdbc.features import StepFeatures, behaviour_features
 
 MEAN_SUFFIX = "(M)"
 """Marks a feature's mean over the trial, as in the paper's Table 2."""

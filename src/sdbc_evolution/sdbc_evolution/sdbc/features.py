@@ -31,10 +31,10 @@ from enum import Enum
 import numpy as np
 from sdbc_sim.task_state import (
     EntityGroupSpec,
-    Geometry,
     GroupState,
     TaskDescription,
     TaskState,
+    validate_task_state,
 )
 
 from sdbc_evolution.sdbc.distance import (
@@ -174,81 +174,6 @@ def _zero_where(array: np.ndarray, mask: np.ndarray) -> None:
     masks of absent entities; ``np.putmask`` is faster only for dense masks.)
     """
     np.copyto(array, 0.0, where=mask)
-
-
-_BOOL = np.dtype(np.bool_)
-_FLOAT = np.dtype(np.float64)
-
-
-def validate_task_state(
-    description: TaskDescription, state: TaskState, n_trials: int
-) -> None:
-    """Checks that a task state has the shapes and dtypes its description promises.
-
-    Raises:
-        ValueError: Naming the group and array that do not fit.
-    """
-    active = state.active
-    if (
-        not isinstance(active, np.ndarray)
-        or active.shape != (n_trials,)
-        or active.dtype != _BOOL
-    ):
-        raise ValueError(
-            f"task {description.name!r}, step {state.step}: active must be a "
-            f"({n_trials},) bool array, got {np.asarray(active).dtype} "
-            f"{np.shape(active)}"
-        )
-    if len(state.groups) != len(description.groups):
-        raise ValueError(
-            f"task {description.name!r}, step {state.step}: {len(state.groups)} groups "
-            f"in the state, {len(description.groups)} in the description"
-        )
-    for spec, group in zip(description.groups, state.groups, strict=True):
-        size = spec.max_size
-        _check_array(description, state, spec, "present", group.present, (size,))
-        tail = (size, len(spec.attributes))
-        _check_array(description, state, spec, "attributes", group.attributes, tail)
-        if spec.geometry is Geometry.POLYGON:
-            # Any number P >= 1 of segments per polygon.
-            seg = group.segments
-            n_segments = seg.shape[2] if getattr(seg, "ndim", 0) == 5 else 0
-            tail = (size, max(n_segments, 1), 2, 2)
-            _check_array(description, state, spec, "segments", seg, tail)
-        else:
-            _check_array(description, state, spec, "centres", group.centres, (size, 2))
-            if spec.geometry is Geometry.CIRCLE:
-                _check_array(description, state, spec, "radii", group.radii, (size,))
-
-
-def _check_array(
-    description: TaskDescription,
-    state: TaskState,
-    spec: EntityGroupSpec,
-    label: str,
-    array: np.ndarray | None,
-    tail: tuple[int, ...],
-) -> None:
-    """One array of a group: (B or 1, *tail), bool for presence, else float64."""
-    expected = _BOOL if label == "present" else _FLOAT
-    if (
-        isinstance(array, np.ndarray)
-        and array.shape[1:] == tail
-        and (array.shape[0] == 1 or array.shape[0] == state.active.shape[0])
-        and array.dtype == expected
-    ):
-        return
-    where = f"task {description.name!r}, step {state.step}, group {spec.name!r}"
-    if not isinstance(array, np.ndarray):
-        raise ValueError(f"{where}: {label} is missing")
-    if array.dtype != expected:
-        raise ValueError(
-            f"{where}: {label} has dtype {array.dtype}, expected {expected}"
-        )
-    raise ValueError(
-        f"{where}: {label} has shape {array.shape}, expected "
-        f"({state.active.shape[0]} or 1, {', '.join(map(str, tail))})"
-    )
 
 
 class StepFeatures:

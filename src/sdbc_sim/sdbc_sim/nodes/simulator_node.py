@@ -45,7 +45,6 @@ from rcl_interfaces.msg import (
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from sdbc_evolution.sdbc.messages import task_state_to_msg
 from visualization_msgs.msg import MarkerArray
 
 from sdbc_msgs.msg import TaskState as TaskStateMsg
@@ -62,6 +61,7 @@ from sdbc_sim.nodes.interface import (
 )
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
 from sdbc_sim.nodes.markers import markers_from_task_state
+from sdbc_sim.task_state_msgs import task_state_to_msg
 
 DEFAULT_TASK = "gate_escape"
 """Task of a node started without a ``task`` parameter."""
@@ -151,9 +151,7 @@ class SimulatorNode(Node):
             ),
         )
         self.task = build_task(task_name, task_config)
-        self.characterisation_names = list(
-            getattr(self.task, "characterisation_names", ())
-        )
+        self.characterisation_names = list(self.task.characterisation_names)
         self._stepper = TrialStepper(self.task)
         trial_group = MutuallyExclusiveCallbackGroup()
         self.lockstep = Lockstep(

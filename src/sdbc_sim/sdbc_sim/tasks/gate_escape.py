@@ -223,7 +223,12 @@ class GateEscape(Task):
         self.network = NetworkShape(c.n_inputs, c.n_hidden, 3)
         self.layout = BodyLayout(radii=(r,) * n, controlled=(True,) * n)
         self.max_steps = c.max_steps
-        self.characterisation_size = 4
+        self.characterisation_names = (
+            "escaped fraction",
+            "gate closing start / tau",
+            "distance to gate / size",
+            "distance to team centroid / (size / 2)",
+        )
         self.gate_centre = np.array([0.0, s / 2.0])
         self.gate_low = s / 2.0 - c.gate_width / 2.0
         self.gate_high = s / 2.0 + c.gate_width / 2.0

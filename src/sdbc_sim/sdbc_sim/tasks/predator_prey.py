@@ -221,7 +221,12 @@ class PredatorPrey(Task):
             controlled=(True,) * n + (False,),
         )
         self.max_steps = c.max_steps
-        self.characterisation_size = 4
+        self.characterisation_names = (
+            "captured",
+            "trial length / tau",
+            "final predator-prey distance / diagonal",
+            "predator dispersion",
+        )
         self.walls = np.empty((0, 2, 2))
         corners = np.array([(0.0, 0.0), (s, 0.0), (s, s), (0.0, s), (0.0, 0.0)])
         self.boundary = np.stack([corners[:-1], corners[1:]], axis=1)

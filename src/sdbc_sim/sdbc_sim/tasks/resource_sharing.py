@@ -285,7 +285,12 @@ class ResourceSharing(Task):
         self.network = NetworkShape(c.n_inputs, c.n_hidden, 3)
         self.layout = BodyLayout(radii=(r,) * n, controlled=(True,) * n)
         self.max_steps = c.max_steps
-        self.characterisation_size = 4
+        self.characterisation_names = (
+            "survivor fraction",
+            "mean energy / max energy",
+            "mean speed / max speed",
+            "distance to station / (size / 2)",
+        )
         self.station_centre = np.array([s / 2.0, s / 2.0])
         self.walls = np.empty((0, 2, 2))
         # No walls: a robot can drive max_speed x max_steps beyond the arena.
