@@ -52,7 +52,9 @@ from sdbc_sim.nodes.interface import (
     GENERATION_STATS_TOPIC,
     LATCHED_QOS,
     REPLAY_BEST_SERVICE,
+    UsageError,
     parse_task_config,
+    split_ros_arguments,
 )
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -332,18 +334,10 @@ class EvolutionNode(Node):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    argv = list(sys.argv if argv is None else argv)
     try:
-        unknown = rclpy.utilities.remove_ros_args(argv)[1:]
-    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
-        print(f"evolution_node: error: {error}", file=sys.stderr)
-        return 2
-    if unknown:
-        print(
-            f"evolution_node: error: unknown arguments {unknown}; ROS arguments go "
-            "after --ros-args",
-            file=sys.stderr,
-        )
+        argv, _ = split_ros_arguments("evolution_node", argv)
+    except UsageError as error:
+        print(error, file=sys.stderr)
         return 2
     rclpy.init(args=argv)
     node: EvolutionNode | None = None

@@ -37,7 +37,12 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerGuardCondition
 from rclpy.subscription import Subscription
-from sdbc_sim.nodes.interface import RECORDER_NODE, TASK_STATE_QOS
+from sdbc_sim.nodes.interface import (
+    RECORDER_NODE,
+    TASK_STATE_QOS,
+    UsageError,
+    split_ros_arguments,
+)
 
 from sdbc_evolution.bags import BagWriter, message_class
 
@@ -196,11 +201,10 @@ def _terminate(signum: int, frame: object) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    argv = list(sys.argv if argv is None else argv)
     try:
-        plain = rclpy.utilities.remove_ros_args(argv)[1:]
-    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
-        print(f"recorder: error: {error}", file=sys.stderr)
+        argv, plain = split_ros_arguments("recorder", argv, allow_plain=True)
+    except UsageError as error:
+        print(error, file=sys.stderr)
         return 2
     args = build_parser().parse_args(plain)
     rclpy.init(args=argv)

@@ -55,8 +55,10 @@ from sdbc_sim.nodes.interface import (
     CONTROLLER_NODE,
     LOCKSTEP_QOS,
     SENSORS_TOPIC,
+    UsageError,
     build_task,
     robot_namespace,
+    split_ros_arguments,
 )
 
 DEFAULT_TASK = "gate_escape"
@@ -233,11 +235,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    argv = list(sys.argv if argv is None else argv)
     try:
-        plain = rclpy.utilities.remove_ros_args(argv)[1:]
-    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
-        print(f"controller_node: error: {error}", file=sys.stderr)
+        argv, plain = split_ros_arguments("controller_node", argv, allow_plain=True)
+    except UsageError as error:
+        print(error, file=sys.stderr)
         return 2
     args = build_parser().parse_args(plain)
     if len(set(args.robots)) != len(args.robots) or min(args.robots) < 0:

@@ -22,9 +22,11 @@ QoS, chosen on purpose:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import sys
+from collections.abc import Mapping, Sequence
 from typing import Any
 
+import rclpy.utilities
 import yaml
 from rclpy.qos import (
     DurabilityPolicy,
@@ -145,3 +147,37 @@ def build_task(name: str, task_config: str) -> Task:
             bad value, each named.
     """
     return make_task(name, **parse_task_config(task_config))
+
+
+class UsageError(ValueError):
+    """A node's command line that cannot be used; the message says why."""
+
+
+def split_ros_arguments(
+    prog: str, argv: Sequence[str] | None = None, *, allow_plain: bool = False
+) -> tuple[list[str], list[str]]:
+    """Splits a node's command line into what ``rclpy.init`` takes and the rest.
+
+    Args:
+        prog: The node's program name, for messages.
+        argv: The command line, program name first; ``sys.argv`` if None.
+        allow_plain: Whether the node takes arguments of its own (outside
+            ``--ros-args``); if not, any such argument is an error.
+
+    Returns:
+        (the whole command line for ``rclpy.init``, the node's own arguments).
+
+    Raises:
+        UsageError: On malformed ROS arguments, or unexpected plain ones.
+    """
+    full = list(sys.argv if argv is None else argv)
+    try:
+        plain = rclpy.utilities.remove_ros_args(full)[1:]
+    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
+        raise UsageError(f"{prog}: error: {error}") from error
+    if plain and not allow_plain:
+        raise UsageError(
+            f"{prog}: error: unknown arguments {plain}; ROS arguments go after "
+            "--ros-args"
+        )
+    return full, plain

@@ -57,7 +57,9 @@ from sdbc_sim.nodes.interface import (
     SIMULATOR_NODE,
     TASK_STATE_QOS,
     TASK_STATE_TOPIC,
+    UsageError,
     build_task,
+    split_ros_arguments,
 )
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
 from sdbc_sim.nodes.markers import markers_from_task_state
@@ -269,18 +271,10 @@ class SimulatorNode(Node):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    argv = list(sys.argv if argv is None else argv)
     try:
-        unknown = rclpy.utilities.remove_ros_args(argv)[1:]
-    except RuntimeError as error:  # rclpy's RCLInvalidROSArgsError
-        print(f"simulator_node: error: {error}", file=sys.stderr)
-        return 2
-    if unknown:
-        print(
-            f"simulator_node: error: unknown arguments {unknown}; ROS arguments go "
-            "after --ros-args",
-            file=sys.stderr,
-        )
+        argv, _ = split_ros_arguments("simulator_node", argv)
+    except UsageError as error:
+        print(error, file=sys.stderr)
         return 2
     rclpy.init(args=argv)
     node: SimulatorNode | None = None
