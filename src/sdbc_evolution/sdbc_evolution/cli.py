@@ -36,8 +36,8 @@ from sdbc_evolution.config import (
     quickstart_config,
 )
 from sdbc_evolution.evaluators import (
-    DEFAULT_CONNECT_TIMEOUT,
     SchedulerUnreachable,
+    add_evaluator_arguments,
     make_evaluator,
 )
 from sdbc_evolution.experiment import Experiment, ExperimentError, task_spec
@@ -76,18 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="continue the run in --out from its checkpoint",
     )
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers", type=int, help="local worker processes (default: every core)"
-    )
-    where.add_argument(
-        "--scheduler", metavar="ADDRESS", help="evaluate on a Dask cluster instead"
-    )
-    parser.add_argument(
-        "--connect-timeout",
-        type=float,
-        default=DEFAULT_CONNECT_TIMEOUT,
-        help="seconds to wait for the Dask scheduler",
+    add_evaluator_arguments(
+        parser, workers_help="local worker processes (default: every core)"
     )
     parser.add_argument("--no-gif", action="store_true", help="skip the GIF at the end")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

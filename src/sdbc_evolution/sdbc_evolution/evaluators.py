@@ -22,6 +22,7 @@ per process, so nothing heavier than genomes and seeds crosses process boundarie
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
 from abc import ABC, abstractmethod
@@ -377,3 +378,19 @@ def make_evaluator(
             )
         return DaskEvaluator(spec, scheduler, timeout)
     return LocalEvaluator(spec, workers)
+
+
+def add_evaluator_arguments(parser: argparse.ArgumentParser, workers_help: str) -> None:
+    """Adds ``--workers N | --scheduler ADDRESS`` and ``--connect-timeout`` to a
+    command line: where evaluations run, the same way for every command."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help=workers_help)
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="evaluate on a Dask cluster instead"
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=DEFAULT_CONNECT_TIMEOUT,
+        help="seconds to wait for the Dask scheduler",
+    )

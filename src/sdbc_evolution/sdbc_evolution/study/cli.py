@@ -24,7 +24,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sdbc_evolution.evaluators import DEFAULT_CONNECT_TIMEOUT, SchedulerUnreachable
+from sdbc_evolution.evaluators import SchedulerUnreachable, add_evaluator_arguments
 from sdbc_evolution.study.presets import (
     PRESET_NAMES,
     PresetError,
@@ -54,20 +54,9 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         type=Path,
         help=f"study directory (default: {RESULTS_ROOT}/study-<preset>)",
     )
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=int,
-        help="local runs side by side, one process each (default: every core)",
-    )
-    where.add_argument(
-        "--scheduler", metavar="ADDRESS", help="evaluate on a Dask cluster instead"
-    )
-    parser.add_argument(
-        "--connect-timeout",
-        type=float,
-        default=DEFAULT_CONNECT_TIMEOUT,
-        help="seconds to wait for the Dask scheduler",
+    add_evaluator_arguments(
+        parser,
+        workers_help="local runs side by side, one process each (default: every core)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 

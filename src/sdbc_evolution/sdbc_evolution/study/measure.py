@@ -63,8 +63,10 @@ class Probe:
     def worst_cpu_per_generation(self) -> float:
         """CPU seconds of a generation if every trial ran ``max_steps``."""
         evaluation = self.cpu_per_generation * self.evaluation_share
-        rest = self.cpu_per_generation - evaluation
-        return rest + evaluation * self.max_steps / max(self.mean_length, 1.0)
+        # Added to the measured cost, so that trials already at max_steps give it
+        # back exactly (rest + evaluation x 1 may round below it).
+        longer = self.max_steps / max(self.mean_length, 1.0) - 1.0
+        return self.cpu_per_generation + evaluation * longer
 
 
 def probe(
