@@ -75,8 +75,10 @@ class PhysicsSettings:
 
     Attributes:
         trials_per_space: Most trials in one Space. Chipmunk's cost per body grows
-            past a few hundred trials per Space (cache); ``bench/engine.py
-            --sweep`` measures it.
+            past a few hundred trials per Space (cache). The default is the best of
+            ``bench/engine.py --task gate_escape --steps 300 --sweep
+            125,250,500,1000,2000 --repeat 3`` on a quiet 2-core machine (engine
+            robot-steps/s 0.98M, 0.96M, 1.01M, 0.99M, 0.96M: flat within 5 %).
         dt: Physics time per control step; speeds are then in units per step.
         iterations: Contact solver iterations per step.
         overlap_tolerance: Largest overlap of two bodies, or of a body and a wall,
@@ -90,7 +92,7 @@ class PhysicsSettings:
             an overlap (see :func:`project_apart`).
     """
 
-    trials_per_space: int = 250
+    trials_per_space: int = 500
     dt: float = 1.0
     iterations: int = 10
     overlap_tolerance: float = 0.02
