@@ -28,6 +28,7 @@ from sdbc_evolution.study.claims import (
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS, PresetError, load_preset_file
 from sdbc_evolution.study.relevance import TASK_SPECIFIC_FEATURES
+from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
 if TYPE_CHECKING:
     from sdbc_evolution.study.analysis import Analysis, TaskAnalysis
@@ -456,6 +457,20 @@ def _preset_line(analysis: Analysis) -> list[str]:
     ]
 
 
+def _problem_lines(problems: list[RunProblem], tasks_with_runs: set[str]) -> list[str]:
+    """One line per run left out, except a task not run at all: one line for it."""
+    by_task: dict[str, list[RunProblem]] = {}
+    for problem in problems:
+        by_task.setdefault(problem.name.split("/")[0], []).append(problem)
+    lines = []
+    for task, group in by_task.items():
+        if task not in tasks_with_runs and all(p.reason == MISSING for p in group):
+            lines.append(f"- `{task}`: not run yet ({len(group)} runs missing)")
+        else:
+            lines += [f"- `{p.name}`: {p.reason}" for p in group]
+    return lines
+
+
 def write_report(
     analysis: Analysis, path: Path, command: list[str] | None = None
 ) -> Path:
@@ -490,7 +505,7 @@ def write_report(
     lines += [f"{len(study.runs)} usable runs{expected}.", ""]
     if analysis.problems:
         lines += ["Runs left out:", ""]
-        lines += [f"- `{p.name}`: {p.reason}" for p in analysis.problems]
+        lines += _problem_lines(analysis.problems, set(study.tasks()))
         lines += [""]
     lines += ["## The paper's claims, one by one", ""]
     lines += [

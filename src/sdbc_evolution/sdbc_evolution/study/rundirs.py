@@ -49,6 +49,10 @@ LENGTH_DIMENSION = "Simulation length"
 """The SDBC dimension holding a controller's mean trial length in steps."""
 
 
+MISSING = "missing"
+"""Reason given for a run the preset expects and the study directory lacks."""
+
+
 @dataclass(frozen=True)
 class RunProblem:
     """A run the analysis leaves out, and why.
@@ -269,7 +273,7 @@ def load_study(root: str | Path) -> StudyData:
             for spec in plan:
                 if spec.path.resolve() not in seen:
                     problems.append(
-                        RunProblem(str(spec.path.relative_to(root)), "missing")
+                        RunProblem(str(spec.path.relative_to(root)), MISSING)
                     )
     if not runs:
         raise FileNotFoundError(
