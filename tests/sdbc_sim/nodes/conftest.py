@@ -97,7 +97,10 @@ def start_live_graph(
                 },
                 "simulator": {
                     "ros__parameters": {
-                        "command_timeout": 2.0,
+                        # Longer than Fast DDS needs to free its shared-memory
+                        # port after a controller is SIGKILLed mid-write (seen:
+                        # the other robots' commands then stall for up to ~2 s).
+                        "command_timeout": 6.0,
                         "discovery_timeout": 10.0,
                         **(simulator or {}),
                     }
