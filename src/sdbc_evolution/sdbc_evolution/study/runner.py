@@ -23,6 +23,7 @@ to turn seconds into per-worker rates.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import queue
@@ -31,6 +32,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from multiprocessing import get_context
@@ -383,20 +385,24 @@ def _note(execution: Execution, workers: int) -> dict[str, Any]:
     }
 
 
-def _run_in_process(
-    todo: list[tuple[RunSpec, int]], progress: _Progress
+def _run_one_by_one(
+    todo: list[tuple[RunSpec, int]],
+    progress: _Progress,
+    evaluator_for: Callable[[RunSpec], AbstractContextManager[Evaluator]],
+    note: dict[str, Any],
 ) -> list[RunOutcome]:
+    """Runs ``todo`` in turn, each on ``evaluator_for(spec)``; a failed run is
+    recorded and the next one starts, an interrupted one stops the rest."""
     results = []
-    execution = Execution(workers=1)
     for spec, done in todo:
         progress.started(spec.name, done, spec.generations)
-        with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
+        with evaluator_for(spec) as evaluator:
             try:
                 result = execute_run(
                     spec,
                     evaluator,
                     lambda g, s=spec: progress.generation(s.name, g, s.generations),
-                    _note(execution, 1),
+                    note,
                 )
             except Exception:
                 result = RunOutcome(spec.name, done, False, traceback.format_exc())
@@ -407,33 +413,32 @@ def _run_in_process(
     return results
 
 
+def _run_in_process(
+    todo: list[tuple[RunSpec, int]], progress: _Progress
+) -> list[RunOutcome]:
+    return _run_one_by_one(
+        todo,
+        progress,
+        lambda spec: LocalEvaluator(task_spec(spec.config), workers=1),
+        _note(Execution(workers=1), 1),
+    )
+
+
 def _run_dask(
     todo: list[tuple[RunSpec, int]], execution: Execution, progress: _Progress
 ) -> list[RunOutcome]:
-    results = []
-    spec0 = todo[0][0]
+    # One cluster connection serves every run.
     with make_evaluator(
-        task_spec(spec0.config),
+        task_spec(todo[0][0].config),
         scheduler=execution.scheduler,
         timeout=execution.connect_timeout,
     ) as evaluator:
-        note = _note(execution, evaluator.workers)
-        for spec, done in todo:
-            progress.started(spec.name, done, spec.generations)
-            try:
-                result = execute_run(
-                    spec,
-                    evaluator,
-                    lambda g, s=spec: progress.generation(s.name, g, s.generations),
-                    note,
-                )
-            except Exception:
-                result = RunOutcome(spec.name, done, False, traceback.format_exc())
-            progress.ended(spec.name, result.finished)
-            results.append(result)
-            if result.interrupted:
-                break
-    return results
+        return _run_one_by_one(
+            todo,
+            progress,
+            lambda spec: contextlib.nullcontext(evaluator),
+            _note(execution, evaluator.workers),
+        )
 
 
 def _interrupt_once(signum: int, frame: Any) -> None:
