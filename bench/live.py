@@ -123,7 +123,6 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     from sdbc_evolution.launch import (
         ProcessGraph,
         child_environment,
-        graph_processes,
         load_graph_file,
     )
     from sdbc_sim.nodes.interface import RECORDER_NODE, TASK_STATE_TOPIC
@@ -151,14 +150,11 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
             }
         )
     )
-    parsed = load_graph_file(graph_file)
-    params = tmp / "parameters.yaml"
-    params.write_text(yaml.safe_dump(parsed.parameters))
     env = child_environment()
     env.setdefault("ROS_HOME", str(tmp / "ros_home"))
     bag = tmp / "bag"
-    graph = ProcessGraph(
-        graph_processes(parsed, params, record=bag), log_dir=tmp / "logs", env=env
+    graph = ProcessGraph.from_graph_file(
+        load_graph_file(graph_file), tmp, record=bag, log_dir=tmp / "logs", env=env
     )
     results: dict[str, list] = {}
     for name in graph.processes:

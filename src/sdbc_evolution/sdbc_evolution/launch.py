@@ -59,6 +59,8 @@ SHM_DIR = Path("/dev/shm")
 """Where Fast DDS keeps its shared-memory segments and locks."""
 DDS_FILE_PREFIXES = ("fastrtps_", "sem.fastrtps_")
 """Names of the files Fast DDS creates in :data:`SHM_DIR`."""
+PARAMETERS_FILE = "parameters.yaml"
+"""The nodes' parameters as ``--params-file`` reads them, in the graph's work dir."""
 
 SIMULATOR_MODULE = "sdbc_sim.nodes.simulator_node"
 CONTROLLER_MODULE = "sdbc_sim.nodes.controller_node"
@@ -369,6 +371,26 @@ class ProcessGraph:
         self._started_at = time.time()
         self._logs: list[Any] = []
 
+    @classmethod
+    def from_graph_file(
+        cls,
+        graph_file: GraphFile,
+        work_dir: Path,
+        record: Path | None = None,
+        log_dir: Path | None = None,
+        env: Mapping[str, str] | None = None,
+    ) -> ProcessGraph:
+        """The processes of ``graph_file``, not started yet; the nodes' parameters
+        go to ``<work_dir>/parameters.yaml``, which must outlive the graph."""
+        params_file = Path(work_dir) / PARAMETERS_FILE
+        params_file.write_text(yaml.safe_dump(graph_file.parameters))
+        return cls(
+            graph_processes(graph_file, params_file, record),
+            graph_file.settings.shutdown_timeout,
+            log_dir,
+            env,
+        )
+
     def log_path(self, name: str) -> Path | None:
         """Where process ``name`` writes its output (None: the terminal)."""
         if self.log_dir is None:
@@ -580,11 +602,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.trial and any(seed < 0 for seed in args.trial):
             raise GraphError(f"--trial: seeds must be non-negative, got {args.trial}")
         with tempfile.TemporaryDirectory(prefix="sdbc-graph-") as tmp:
-            params_file = Path(tmp) / "parameters.yaml"
-            params_file.write_text(yaml.safe_dump(graph_file.parameters))
-            processes = graph_processes(graph_file, params_file, args.record)
-            graph = ProcessGraph(
-                processes, graph_file.settings.shutdown_timeout, args.log_dir
+            graph = ProcessGraph.from_graph_file(
+                graph_file, Path(tmp), args.record, args.log_dir
             )
             return _run(graph, args, graph_file.settings)
     except GraphError as error:

@@ -79,7 +79,6 @@ def start_live_graph(
     from sdbc_evolution.launch import (
         ProcessGraph,
         child_environment,
-        graph_processes,
         load_graph_file,
     )
     from sdbc_evolution.nodes.graph_client import GraphClient
@@ -109,13 +108,12 @@ def start_live_graph(
             }
         )
     )
-    parsed = load_graph_file(graph_file)
-    params = tmp / "parameters.yaml"
-    params.write_text(yaml.safe_dump(parsed.parameters))
     env = child_environment()
     env["ROS_HOME"] = str(tmp / "ros_home")
     log_dir = tmp / "logs"
-    graph = ProcessGraph(graph_processes(parsed, params), log_dir=log_dir, env=env)
+    graph = ProcessGraph.from_graph_file(
+        load_graph_file(graph_file), tmp, log_dir=log_dir, env=env
+    )
     graph.start()
     context = rclpy.Context()
     rclpy.init(context=context)
