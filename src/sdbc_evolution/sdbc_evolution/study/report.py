@@ -339,7 +339,11 @@ def _differences(analysis: Analysis) -> list[str]:
         "- **Physics.** Our robots are pymunk bodies driven by forces, colliding "
         "physically; the authors' robots were kinematic (turn, then move; a blocked "
         "move retried sideways). Pushing, sliding along walls and jams differ, and "
-        "with them the fitness landscape and the behaviours there are to find.",
+        "with them the fitness landscape and the behaviours there are to find. "
+        "Chipmunk moves a body with the velocity of the step before, so a robot "
+        "that stops still moves one more step: stopping on a spot (resource "
+        "sharing charges a robot within 1 unit of the station's centre) is harder "
+        "than for the authors' robots.",
         "- **Task details.** The paper's parameter table is lost; the tasks follow "
         "SPEC.md, i.e. the authors' code where the paper is silent, and the paper's "
         "fitness formulas (gate escape uses (g + t/tau)/(1 + N), not the code's "
