@@ -12,6 +12,7 @@ import math
 import os
 import shlex
 from collections import Counter
+from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -113,22 +114,45 @@ def _sizes(analysis: Analysis) -> list[str]:
     )
 
 
+def session_wall_seconds(sessions: list[dict]) -> float:
+    """Time during which at least one of ``sessions`` (study log entries) ran: the
+    union of their [started, started + elapsed_s] intervals. Sessions one after
+    another add up; shards run at once count once."""
+    spans = []
+    for session in sessions:
+        elapsed = float(session.get("elapsed_s", 0.0))
+        try:
+            start = datetime.fromisoformat(session["started"]).timestamp()
+        except (KeyError, TypeError, ValueError):
+            return sum(float(s.get("elapsed_s", 0.0)) for s in sessions)
+        spans.append((start, start + elapsed))
+    total, reached = 0.0, -math.inf
+    for start, end in sorted(spans):
+        if end > reached:
+            total += end - max(start, reached)
+            reached = end
+    return total
+
+
 def _wall_times(analysis: Analysis) -> list[str]:
     rows = []
     for ta in analysis.tasks:
         sessions = [s for s in analysis.sessions if s.get("task") == ta.task]
         if sessions:
-            total = sum(float(s.get("elapsed_s", 0.0)) for s in sessions)
-            how = ", ".join(
+            hows = Counter(
                 f"{s.get('evaluator', '?')} x{s.get('concurrent_runs', '?')} on "
                 f"{s.get('cpu_count', '?')} cores"
+                + (" (shards)" if s.get("shard") else "")
                 + (" (interrupted)" if s.get("interrupted") else "")
                 for s in sessions
+            )
+            how = ", ".join(
+                h if n == 1 else f"{h} ({n} sessions)" for h, n in hows.items()
             )
             rows.append(
                 [
                     TASK_TITLES.get(ta.task, ta.task),
-                    _minutes(total),
+                    _minutes(session_wall_seconds(sessions)),
                     str(len(sessions)),
                     how,
                 ]
@@ -492,7 +516,11 @@ def write_report(
     lines += _preset_line(analysis)
     lines += ["## What ran", ""]
     lines += _sizes(analysis)
-    lines += ["Wall time per task, from the study log (`study_log.jsonl`):", ""]
+    lines += [
+        "Wall time per task, from the study log (`study_log.jsonl`): the time "
+        "during which some session of the task ran.",
+        "",
+    ]
     lines += _wall_times(analysis)
     commands = list(
         dict.fromkeys(
