@@ -3,16 +3,19 @@ fails is named and the others go on."""
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 import yaml
 from sdbc_evolution.study import runner
 from sdbc_evolution.study.cli import main
-from sdbc_evolution.study.plan import RunState, run_status, study_plan
+from sdbc_evolution.study.plan import LOG_FILE, RunState, run_status, study_plan
 from sdbc_evolution.study.presets import StudyPreset
 from sdbc_evolution.study.runner import Execution, run_study
-from study_helpers import TINY
+from study_helpers import TINY, run_contents
 
 
 @pytest.fixture
@@ -29,6 +32,9 @@ def tiny_file(tmp_path: Path) -> Path:
         (["run", "--preset", "smoke", "--task", "football"], "--task football"),
         (["run", "--preset", "smoke", "--workers", "0"], "at least 1"),
         (["measure", "--preset", "smoke", "--generations", "1"], "--generations"),
+        (["run", "--preset", "smoke", "--shard", "2/2"], "shard 2/2: needs 0 <="),
+        (["run", "--preset", "smoke", "--shard", "first"], "expected K/N"),
+        (["run", "--preset", "smoke", "--shard", "30/40"], "at most 24 shards"),
     ],
 )
 def test_bad_input_exits_2_before_any_run(
@@ -106,3 +112,43 @@ def test_measure_probes_every_treatment_and_projects_the_study(
     assert projected_task_seconds(preset, probes, 2, False) == pytest.approx(expected)
     assert main(["measure", "--preset", str(tiny_file), "--generations", "2"]) == 0
     assert "gate_escape: 2 generations; projected study time" in capsys.readouterr().out
+
+
+def test_shards_run_at_once_make_the_study_run_in_one_go(
+    tiny_file: Path, tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    whole = tmp_path / "whole"
+    run_study(tiny_preset, whole, execution=Execution(workers=1), quiet=True)
+    sharded = tmp_path / "sharded"
+    shards = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "sdbc_evolution.study",
+                "run",
+                "--preset",
+                str(tiny_file),
+                "--out",
+                str(sharded),
+                "--workers",
+                "1",
+                "--quiet",
+                "--shard",
+                f"{k}/3",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
+        for k in range(3)
+    ]
+    for shard in shards:
+        _, err = shard.communicate(timeout=300)
+        assert shard.returncode == 0, err.decode()
+    for a, b in zip(
+        study_plan(tiny_preset, whole), study_plan(tiny_preset, sharded), strict=True
+    ):
+        assert run_contents(a.path) == run_contents(b.path)
+    log = [json.loads(line) for line in (sharded / LOG_FILE).read_text().splitlines()]
+    assert sorted(e["shard"] for e in log) == ["0/3", "1/3", "2/3"]
+    assert sorted(e["worked_on"] for e in log) == [1, 1, 2]

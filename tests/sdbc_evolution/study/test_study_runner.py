@@ -21,6 +21,7 @@ from sdbc_evolution.study.plan import (
     LOG_FILE,
     STUDY_FILE,
     RunState,
+    Shard,
     run_seed,
     run_status,
     study_plan,
@@ -75,6 +76,21 @@ def test_plan_interleaves_treatments_and_seeds_depend_on_names(
     )
     with pytest.raises(ValueError, match="not in preset"):
         study_plan(tiny_preset, tmp_path, ("predator_prey",))
+
+
+def test_shards_partition_the_plan_and_mix_treatments(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    plan = study_plan(tiny_preset, tmp_path)
+    shards = [Shard(k, 2).select(plan) for k in range(2)]
+    assert sorted(s.name for shard in shards for s in shard) == sorted(
+        s.name for s in plan
+    )
+    assert [s.treatment for s in shards[0]] == [Treatment.FIT, Treatment.FIT]
+    assert Shard.parse("1/2") == Shard(1, 2) and str(Shard(1, 2)) == "1/2"
+    for bad in ("2/2", "-1/2", "0/0", "1", "a/b", "1/2/3", " 1/2"):
+        with pytest.raises(ValueError, match="shard"):
+            Shard.parse(bad)
 
 
 def test_a_second_run_skips_finished_runs_and_touches_nothing(

@@ -5,6 +5,7 @@ Examples::
     sdbc-study --preset smoke                     # run, then analyse
     sdbc-study run --preset local --task gate_escape --out results/study-local
     sdbc-study run --preset paper --scheduler tcp://10.0.0.5:8786
+    sdbc-study run --preset paper --workers 1 --shard $SLURM_ARRAY_TASK_ID/240
     sdbc-study analyse results/study-local --out docs/study/local
     sdbc-study measure --preset local             # what the study would cost here
 
@@ -57,6 +58,12 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     add_evaluator_arguments(
         parser,
         workers_help="local runs side by side, one process each (default: every core)",
+    )
+    parser.add_argument(
+        "--shard",
+        metavar="K/N",
+        help="run only share K of N of the runs (runs K, K+N, ...), e.g. one "
+        "array job each on a cluster's shared filesystem",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -118,6 +125,7 @@ def _preset(args: argparse.Namespace) -> StudyPreset:
 
 
 def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
+    from sdbc_evolution.study.plan import Shard
     from sdbc_evolution.study.runner import Execution, StudyError, run_study
 
     try:
@@ -127,6 +135,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
             scheduler=args.scheduler,
             connect_timeout=args.connect_timeout,
         )
+        shard = Shard.parse(args.shard) if args.shard is not None else None
     except (PresetError, ValueError) as error:
         return _error(str(error)), None
     out = args.out if args.out is not None else RESULTS_ROOT / f"study-{preset.name}"
@@ -138,6 +147,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
             execution=execution,
             quiet=args.quiet,
             command=["sdbc-study", *argv],
+            shard=shard,
         )
     except (StudyError, SchedulerUnreachable, ValueError) as error:
         return _error(str(error)), None

@@ -123,6 +123,46 @@ def study_plan(
     ]
 
 
+@dataclass(frozen=True)
+class Shard:
+    """Share ``index`` of ``count`` of a study's runs, for array jobs on a cluster.
+
+    Shard k of n takes the plan's runs k, k + n, k + 2n, ...: the shards partition
+    the study, each run in exactly one, and as the plan interleaves treatments,
+    every shard gets about as many of each. Runs are independent and their seeds
+    depend on names only, so a study run in n shards (at once, on a shared
+    filesystem) equals the study run in one go.
+
+    Attributes:
+        index: Which share, from 0.
+        count: How many shares.
+    """
+
+    index: int
+    count: int
+
+    def __post_init__(self) -> None:
+        if self.count < 1 or not 0 <= self.index < self.count:
+            raise ValueError(
+                f"shard {self.index}/{self.count}: needs 0 <= index < count"
+            )
+
+    @classmethod
+    def parse(cls, text: str) -> Shard:
+        """``"K/N"``, as a command line gives it."""
+        index, slash, count = text.partition("/")
+        if not (slash and index.isdigit() and count.isdigit()):
+            raise ValueError(f"shard {text!r}: expected K/N, whole numbers, 0 <= K < N")
+        return cls(int(index), int(count))
+
+    def select(self, plan: list[RunSpec]) -> list[RunSpec]:
+        """This shard's runs of ``plan``."""
+        return plan[self.index :: self.count]
+
+    def __str__(self) -> str:
+        return f"{self.index}/{self.count}"
+
+
 class RunState(str, Enum):
     """How far a run directory got."""
 

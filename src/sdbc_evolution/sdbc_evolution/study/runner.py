@@ -52,6 +52,7 @@ from sdbc_evolution.study.plan import (
     STUDY_FILE,
     RunSpec,
     RunState,
+    Shard,
     discard,
     run_status,
     study_plan,
@@ -159,6 +160,7 @@ def run_study(
     quiet: bool = False,
     say: Say | None = None,
     command: Sequence[str] | None = None,
+    shard: Shard | None = None,
 ) -> StudyOutcome:
     """Runs (or resumes) the study ``preset`` in ``root``.
 
@@ -170,6 +172,8 @@ def run_study(
         quiet: No progress bar.
         say: Where messages go (default: stderr).
         command: The command line, for the study log.
+        shard: Only this share of the runs (see :class:`Shard`); sessions of
+            different shards may run at once on the same directory.
 
     Raises:
         StudyError: The directory holds another study.
@@ -179,6 +183,14 @@ def run_study(
     say = say or (lambda text: print(text, file=sys.stderr))
     root = Path(root)
     plan = study_plan(preset, root, tuple(tasks) if tasks is not None else None)
+    if shard is not None:
+        runs = len(plan)
+        plan = shard.select(plan)
+        if not plan:
+            raise StudyError(
+                f"shard {shard} holds no runs: the study has {runs}, so at most "
+                f"{runs} shards"
+            )
     if execution.scheduler is not None:
         # An unreachable scheduler fails here, before anything is written.
         make_evaluator(
@@ -247,6 +259,7 @@ def run_study(
                         "interrupted": aborted == "KeyboardInterrupt"
                         or any(r.interrupted for r in results),
                         "aborted_by": aborted or None,
+                        "shard": str(shard) if shard is not None else None,
                     },
                 )
             outcome.ran.extend(results)
