@@ -367,9 +367,9 @@ def analyse(
     projected = projections(costs, paper_preset(), settings.cluster_workers)
     _write_csv(
         tables / "projection.csv",
-        ["task", "workers", "expected_hours", "bound_hours", "cpu_hours"],
+        ["task", "workers", "expected_hours", "bound_hours", "cpu_hours", "runs"],
         [
-            [p.task, p.workers, p.expected_hours, p.bound_hours, p.cpu_hours]
+            [p.task, p.workers, p.expected_hours, p.bound_hours, p.cpu_hours, p.runs]
             for p in projected
         ],
     )

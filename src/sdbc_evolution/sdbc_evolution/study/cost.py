@@ -144,6 +144,8 @@ class Projection:
         bound_hours: With every trial running ``max_steps``.
         cpu_hours: Total CPU time at the measured length (divide by W for a
             scheduler that runs many runs at once).
+        runs: Runs of the task (runs x treatments); ``cpu_hours / runs`` is one
+            run on one core, the least a study run side by side can take.
     """
 
     task: str
@@ -151,6 +153,7 @@ class Projection:
     expected_hours: float
     bound_hours: float
     cpu_hours: float
+    runs: int
 
 
 def projected_hours(
@@ -183,7 +186,8 @@ def projections(
         for w in workers:
             expected, cpu = projected_hours(cost, preset, w, cost.mean_length)
             bound, _ = projected_hours(cost, preset, w, float(cost.max_steps))
-            out.append(Projection(cost.task, w, expected, bound, cpu))
+            runs = preset.runs * len(preset.treatments)
+            out.append(Projection(cost.task, w, expected, bound, cpu, runs))
     return out
 
 

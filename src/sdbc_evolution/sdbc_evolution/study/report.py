@@ -33,6 +33,7 @@ from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
 if TYPE_CHECKING:
     from sdbc_evolution.study.analysis import Analysis, TaskAnalysis
+    from sdbc_evolution.study.cost import Projection
 
 CLAIM_TOPICS = {
     "quality": "Quality of the solutions (each run's best fitness)",
@@ -434,39 +435,48 @@ def _projection(analysis: Analysis) -> list[str]:
         "Dask cluster of W workers, runs one after the other, each generation's "
         "controllers spread over min(W, 200) workers: T(W) = runs x treatments x G x "
         "(c N + B L (N T + T_r) / (r min(W, N))), r and c as measured above, L the "
-        "measured mean trial length (expected) or max_steps (bound). CPU hours / W is "
-        "what running many runs side by side could approach. Dask's overhead and "
-        "longer or shorter trials of better-evolved controllers are not modelled.",
+        "measured mean trial length (expected) or max_steps (bound). Dask's overhead "
+        "and longer or shorter trials of better-evolved controllers are not "
+        "modelled. Run side by side instead, one single-core job per share of the "
+        "runs (`--shard K/N`, docs/study/README.md), the study takes about CPU "
+        "hours / W on W cores, and no less than its longest run (hours per run).",
         "",
     ]
     workers = sorted({p.workers for p in analysis.projections})
-    by_task: dict[str, dict[int, tuple[float, float, float]]] = {}
+    by_task: dict[str, dict[int, Projection]] = {}
     for p in analysis.projections:
-        by_task.setdefault(p.task, {})[p.workers] = (
-            p.expected_hours,
-            p.bound_hours,
-            p.cpu_hours,
-        )
+        by_task.setdefault(p.task, {})[p.workers] = p
     rows = []
     for task, values in by_task.items():
-        cpu = next(iter(values.values()))[2]
+        some = next(iter(values.values()))
         rows.append(
-            [TASK_TITLES.get(task, task), f"{cpu:,.0f}"]
-            + [f"{values[w][0]:,.1f} ({values[w][1]:,.1f})" for w in workers]
+            [
+                TASK_TITLES.get(task, task),
+                f"{some.cpu_hours:,.0f}",
+                f"{some.cpu_hours / some.runs:,.1f}",
+            ]
+            + [
+                f"{values[w].expected_hours:,.1f} ({values[w].bound_hours:,.1f})"
+                for w in workers
+            ]
         )
-    totals = (
-        [sum(by_task[t][w][0] for t in by_task) for w in workers],
-        [sum(by_task[t][w][1] for t in by_task) for w in workers],
-    )
+    firsts = [next(iter(v.values())) for v in by_task.values()]
     rows.append(
         [
             "**all tasks**",
-            f"{sum(next(iter(v.values()))[2] for v in by_task.values()):,.0f}",
+            f"{sum(p.cpu_hours for p in firsts):,.0f}",
+            f"{max(p.cpu_hours / p.runs for p in firsts):,.1f}",
         ]
-        + [f"{e:,.1f} ({b:,.1f})" for e, b in zip(*totals, strict=True)]
+        + [
+            f"{sum(by_task[t][w].expected_hours for t in by_task):,.1f} "
+            f"({sum(by_task[t][w].bound_hours for t in by_task):,.1f})"
+            for w in workers
+        ]
     )
     lines += _table(
-        ["task", "CPU hours"] + [f"hours on W = {w} (bound)" for w in workers], rows
+        ["task", "CPU hours", "hours per run"]
+        + [f"hours on W = {w} (bound)" for w in workers],
+        rows,
     )
     return lines
 
