@@ -16,6 +16,7 @@ from sdbc_evolution.config import Treatment
 from sdbc_evolution.evaluators import LocalEvaluator
 from sdbc_evolution.experiment import Experiment, task_spec
 from sdbc_evolution.results import read_generations
+from sdbc_evolution.study import runner
 from sdbc_evolution.study.plan import (
     DISCARDED_DIR,
     LOG_FILE,
@@ -212,6 +213,38 @@ def test_bad_execution_settings_are_refused() -> None:
         Execution(workers=0)
     with pytest.raises(ValueError, match="exclude each other"):
         Execution(workers=2, scheduler="tcp://127.0.0.1:8786")
+
+
+def test_ctrl_c_when_the_running_runs_had_finished_still_stops_the_session(
+    tiny_preset: StudyPreset, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The parent alone gets Ctrl-C just as its children finish: no child reports
+    # an interruption, yet the runs not started must not pass for done.
+    original = runner._Children.poll
+
+    def poll(self: runner._Children) -> None:
+        original(self)
+        if self.results and not self.stopping:
+            raise KeyboardInterrupt
+
+    def interrupt(self: runner._Children) -> None:
+        self.stopping = True  # the children had nothing left to stop
+
+    monkeypatch.setattr(runner._Children, "poll", poll)
+    monkeypatch.setattr(runner._Children, "interrupt", interrupt)
+    root = tmp_path / "study"
+    outcome = run_study(tiny_preset, root, execution=Execution(workers=2), quiet=True)
+    assert outcome.interrupted and not outcome.failed
+    plan = study_plan(tiny_preset, root)
+    assert [run_status(s).state for s in plan] == [
+        RunState.FINISHED,
+        RunState.FINISHED,
+        RunState.NEW,
+        RunState.NEW,
+    ]
+    assert sorted(r.name for r in outcome.ran if r.interrupted) == [
+        s.name for s in plan[2:]
+    ]
 
 
 @pytest.mark.slow

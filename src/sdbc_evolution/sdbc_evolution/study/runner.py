@@ -562,6 +562,12 @@ def _run_processes(
             except KeyboardInterrupt:
                 children.interrupt()
             if children.stopping:
+                # Runs not started yet are stopped too (even when every running
+                # child had finished before the signal): the session says so.
+                for spec, done in waiting:
+                    children.results[spec.name] = RunOutcome(
+                        spec.name, done, finished=False, interrupted=True
+                    )
                 waiting.clear()
     finally:
         for process, _ in children.running.values():
