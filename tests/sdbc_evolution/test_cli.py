@@ -149,3 +149,44 @@ def test_paper_configs_are_spec_defaults(task: str) -> None:
     config = load_config(CONFIGS / "paper" / f"{task}.yaml")
     assert config == ExperimentConfig(task=task).resolved()
     assert config == config_from_dict({"task": task}).resolved()
+
+
+@pytest.mark.slow
+def test_sigterm_to_the_command_alone_stops_it_and_resume_finishes(
+    tmp_path: Path,
+) -> None:
+    # As a batch scheduler stops a job at its time limit: SIGTERM to the command,
+    # not its worker processes, which must stop with it all the same.
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from sdbc_evolution.results import ResultsDirectory
+
+    config = tmp_path / "longer.yaml"
+    config.write_text(TINY.replace("generations: 2", "generations: 40"))
+    out = tmp_path / "run"
+    command = [
+        sys.executable, "-m", "sdbc_evolution.cli", "--config", str(config),
+        "--out", str(out), "--workers", "2", "--quiet", "--no-gif",
+    ]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    process = subprocess.Popen(command, env=env, stderr=subprocess.PIPE, text=True)
+    checkpoint = ResultsDirectory(out, ()).checkpoint_path
+    deadline = time.monotonic() + 120
+    while not checkpoint.exists():
+        assert process.poll() is None, process.stderr.read()
+        assert time.monotonic() < deadline, "no generation within two minutes"
+        time.sleep(0.1)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    assert "resume with" in stderr
+    assert 1 <= len(read_generations(out)["generation"]) < 40
+    resumed = subprocess.run(
+        [*command, "--resume"], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    assert read_generations(out)["generation"].tolist() == list(range(40))

@@ -42,6 +42,7 @@ from sdbc_evolution.evaluators import (
 )
 from sdbc_evolution.experiment import Experiment, ExperimentError, task_spec
 from sdbc_evolution.results import CONFIG_FILE, read_generations
+from sdbc_evolution.stopping import stoppable
 
 RESULTS_ROOT = Path("results")
 """Where runs go when ``--out`` is not given."""
@@ -177,7 +178,8 @@ def _run(experiment: Experiment, out: Path, quiet: bool) -> int:
         bar.update(1)
 
     try:
-        experiment.run(progress)
+        with stoppable():
+            experiment.run(progress)
     except KeyboardInterrupt:
         bar.close()
         print(

@@ -50,6 +50,8 @@ from typing import Any
 
 import yaml
 
+from sdbc_evolution.stopping import stoppable
+
 LAUNCH_KEY = "sdbc_graph"
 """Top-level key of a graph file whose ``ros__parameters`` are the
 :class:`LaunchSettings`."""
@@ -576,16 +578,13 @@ def run_trials(
     return status
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    # SIGTERM (a supervisor) stops the graph like Ctrl-C; and Ctrl-C works even
-    # where the launcher was started with SIGINT ignored (a shell's background job).
-    signal.signal(signal.SIGTERM, _interrupt)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    with stoppable():
+        return _main(args)
+
+
+def _main(args: argparse.Namespace) -> int:
     try:
         graph_file = load_graph_file(args.graph)
         if (

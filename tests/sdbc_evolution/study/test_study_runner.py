@@ -248,10 +248,13 @@ def test_ctrl_c_when_the_running_runs_had_finished_still_stops_the_session(
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("whole_group", [True, False], ids=["ctrl-c", "parent-only"])
+@pytest.mark.parametrize("stop", ["ctrl-c", "parent-only", "sigterm"])
 def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
-    tmp_path: Path, whole_group: bool
+    tmp_path: Path, stop: str
 ) -> None:
+    """Ctrl-C in a terminal (the whole process group), SIGINT to the study alone
+    where it was started with SIGINT ignored (a shell's background job), and a
+    batch scheduler's SIGTERM all stop the study, and the same command resumes."""
     preset = tmp_path / "longer.yaml"
     preset.write_text(
         yaml.safe_dump(
@@ -269,7 +272,16 @@ def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
     ]  # fmt: skip
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     process = subprocess.Popen(
-        command, env=env, start_new_session=True, stderr=subprocess.PIPE, text=True
+        command,
+        env=env,
+        start_new_session=True,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=(
+            (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+            if stop == "parent-only"
+            else None
+        ),
     )
     plan = study_plan(load_preset_file(preset), root)
     deadline = time.monotonic() + 120
@@ -277,10 +289,10 @@ def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
         assert process.poll() is None, process.stderr.read()
         assert time.monotonic() < deadline, "no generation within two minutes"
         time.sleep(0.2)
-    if whole_group:
+    if stop == "ctrl-c":
         os.killpg(process.pid, signal.SIGINT)
     else:
-        process.send_signal(signal.SIGINT)
+        process.send_signal(signal.SIGTERM if stop == "sigterm" else signal.SIGINT)
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 130, stderr
     assert "interrupted; resume with the same command" in stderr

@@ -14,7 +14,8 @@ skips finished runs and resumes interrupted ones. Also ``python -m
 sdbc_evolution.study``.
 
 Exit status: 0 done, 1 some run failed, 2 bad input (preset, task, directory,
-scheduler), 130 interrupted (run the same command again to resume).
+scheduler), 130 interrupted by Ctrl-C or SIGTERM (run the same command again to
+resume).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from sdbc_evolution.evaluators import SchedulerUnreachable, add_evaluator_arguments
+from sdbc_evolution.stopping import stoppable
 from sdbc_evolution.study.presets import (
     PRESET_NAMES,
     PresetError,
@@ -205,7 +207,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _analyse(args.study, args.out, argv)
     if args.command == "measure":
         return _measure(args)
-    status, out = _run(args, argv)
+    with stoppable():
+        status, out = _run(args, argv)
     if args.command == "run" or status != 0 or out is None:
         return status
     return _analyse(out, args.report, argv)

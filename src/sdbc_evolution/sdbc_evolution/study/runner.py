@@ -47,6 +47,7 @@ from sdbc_evolution.evaluators import (
 )
 from sdbc_evolution.experiment import Experiment, task_spec
 from sdbc_evolution.results import atomic_write_bytes
+from sdbc_evolution.stopping import STOP_SIGNALS
 from sdbc_evolution.study.plan import (
     LOG_FILE,
     STUDY_FILE,
@@ -455,9 +456,10 @@ def _run_dask(
 
 
 def _interrupt_once(signum: int, frame: Any) -> None:
-    # The terminal and the parent may both send SIGINT: stop once, then let the
-    # run write its outputs in peace.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # The terminal, the parent and a scheduler may all signal: stop once, then
+    # let the run write its outputs in peace.
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
     raise KeyboardInterrupt
 
 
@@ -465,7 +467,8 @@ def _child(spec: RunSpec, note: dict[str, Any], messages: Any) -> None:
     """One run in a process of its own; everything it says goes to ``messages``."""
     from threadpoolctl import threadpool_limits
 
-    signal.signal(signal.SIGINT, _interrupt_once)
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, _interrupt_once)
     # One run per core: BLAS threads in k-means would only oversubscribe.
     threadpool_limits(1)
     try:
