@@ -128,6 +128,7 @@ def test_relevance_names_are_the_characterisation_dimensions(smoke: Path) -> Non
         for row in rows:
             expected = np.mean([r[row["feature"]] for r in per_run])
             assert float(row["mean_mi_bits"]) == pytest.approx(expected, abs=1e-12)
+            assert 0.0 <= float(row["chance_mi_bits"]) < 4.0
 
 
 @pytest.mark.slow

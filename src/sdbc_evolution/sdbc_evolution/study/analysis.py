@@ -221,6 +221,7 @@ def analyse_task(
                 "sd_mi_bits",
                 "runs",
                 "in_task_specific",
+                "chance_mi_bits",
             ],
             [
                 [
@@ -230,6 +231,7 @@ def analyse_task(
                     relevance.sd[i],
                     relevance.runs,
                     bool(relevance.in_task_specific[i]),
+                    relevance.chance[i],
                 ]
                 for i, name in enumerate(relevance.names)
             ],

@@ -10,6 +10,14 @@ in bits. The relevance of feature k in a run is its mean over the run's generati
 the table gives the mean and SD of that over the runs, sorted by the mean, and marks
 the features that the task-specific characterisation also has.
 
+Beside it, the **chance level** of each feature: the same estimate on the same
+populations with each generation's fitness shuffled, I_g(F'; k), averaged over
+:data:`CHANCE_GENERATIONS` evenly spaced generations of each run and then over the
+runs. The plug-in estimate of a feature unrelated to fitness is not 0 but about
+(b_F - 1)(b_k - 1) / (2 n ln 2) bits for b_F fitness classes, b_k occupied bins and
+n individuals (Miller, 1955): 1.2 bits for 10 x 10 classes and n = 50. What a
+feature has above its chance level is what it shares with fitness.
+
 Which SDBC dimensions "the task-specific characterisation also has" is a judgement;
 it is made here, once, in :data:`TASK_SPECIFIC_FEATURES`: each task-specific feature
 maps to the SDBC dimensions that measure the same thing with the same aggregation (a
@@ -24,6 +32,7 @@ import numpy as np
 
 from sdbc_evolution.config import Treatment
 from sdbc_evolution.results import WEIGHT_PREFIX
+from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information
 from sdbc_evolution.study.rundirs import RunData, StudyData
 
 TASK_SPECIFIC_FEATURES: dict[str, dict[str, tuple[str, ...]]] = {
@@ -75,6 +84,46 @@ def run_information(run: RunData) -> np.ndarray:
     return weights[recorded].mean(axis=0) - run.config.weighting.delta
 
 
+CHANCE_GENERATIONS = 20
+"""Generations per run, evenly spaced, whose MI is re-estimated with shuffled
+fitness for the chance level."""
+CHANCE_SEED = 2014
+"""Seeds the shuffles (with the generation), so the analysis is repeatable."""
+
+
+def chance_information(
+    sdbc: np.ndarray,
+    fitness: np.ndarray,
+    settings: WeightingSettings,
+    generation: int,
+) -> np.ndarray:
+    """(D,) I(F'; k) of one population, F' its fitness in a random order: the MI
+    that the estimate gives features unrelated to fitness, in bits."""
+    rng = np.random.default_rng((CHANCE_SEED, generation))
+    return mutual_information(sdbc, rng.permutation(fitness), settings, generation)
+
+
+def run_chance_information(
+    run: RunData, generations: int = CHANCE_GENERATIONS
+) -> np.ndarray:
+    """(D,) mean of :func:`chance_information` over ``generations`` evenly spaced
+    generations of ``run``, with the run's own weighting settings."""
+    chosen = np.unique(
+        np.linspace(0, run.generations - 1, min(generations, run.generations))
+        .round()
+        .astype(int)
+    )
+    return np.mean(
+        [
+            chance_information(
+                run.sdbc(g), run.fitness[g], run.config.weighting, int(g)
+            )
+            for g in chosen
+        ],
+        axis=0,
+    )
+
+
 @dataclass(frozen=True)
 class RelevanceTable:
     """Mutual information of every SDBC dimension with fitness on one task.
@@ -86,6 +135,7 @@ class RelevanceTable:
         sd: (D,) standard deviation over runs (ddof 1; NaN with one run).
         runs: NS-SD+ runs it comes from.
         in_task_specific: (D,) whether the task-specific characterisation has it.
+        chance: (D,) mean over runs of the chance level (module docstring), bits.
     """
 
     task: str
@@ -94,6 +144,7 @@ class RelevanceTable:
     sd: np.ndarray
     runs: int
     in_task_specific: np.ndarray
+    chance: np.ndarray
 
     def top(self, n: int) -> RelevanceTable:
         """The ``n`` most relevant dimensions."""
@@ -104,6 +155,7 @@ class RelevanceTable:
             self.sd[:n],
             self.runs,
             self.in_task_specific[:n],
+            self.chance[:n],
         )
 
     def rank_of(self, name: str) -> int | None:
@@ -124,6 +176,7 @@ def relevance_table(study: StudyData, task: str) -> RelevanceTable | None:
                 "the runs are not of one task setting"
             )
     information = np.stack([run_information(r) for r in runs])  # (R, D)
+    chance = np.stack([run_chance_information(r) for r in runs]).mean(axis=0)
     mean = information.mean(axis=0)
     sd = (
         information.std(axis=0, ddof=1)
@@ -140,4 +193,5 @@ def relevance_table(study: StudyData, task: str) -> RelevanceTable | None:
         sd=sd[order],
         runs=len(runs),
         in_task_specific=np.array([n in matched for n in ordered]),
+        chance=chance[order],
     )

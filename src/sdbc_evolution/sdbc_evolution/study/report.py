@@ -242,7 +242,12 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
             f"{feature} = {', '.join(names)}"
             for feature, names in TASK_SPECIFIC_FEATURES.get(ta.task, {}).items()
         )
-        + ").",
+        + "). Chance: the same estimate with each population's fitness shuffled, "
+        "the estimate's own bias at population "
+        f"{analysis.study.of(ta.task)[0].config.ga.population_size} (mean over "
+        f"all {len(table.names)} dimensions: {table.chance.mean():.2f} bits, "
+        f"against {table.mean.mean():.2f} with the true fitness); what a "
+        "feature has above it is what it shares with fitness.",
         "",
     ]
     top = table.top(n)
@@ -255,12 +260,22 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
                 name,
                 f"{top.mean[i]:.2f}",
                 _f(top.sd[i], 2),
+                f"{top.chance[i]:.2f}",
                 "yes" if top.in_task_specific[i] else "",
                 f"{p.mean:.2f} ({p.sd:.2f})" if p else "",
             ]
         )
     lines += _table(
-        ["#", "feature", "mean MI", "SD MI", "in TS char.", "paper mean (SD)"], rows
+        [
+            "#",
+            "feature",
+            "mean MI",
+            "SD MI",
+            "chance",
+            "in TS char.",
+            "paper mean (SD)",
+        ],
+        rows,
     )
     missing = [f for f in PAPER_RELEVANCE.get(ta.task, ()) if f.name not in top.names]
     notes = []
@@ -377,7 +392,9 @@ def _differences(analysis: Analysis) -> list[str]:
         "equal-width bins, estimated on one population of "
         f"{some.ga.population_size}: with few individuals per cell the plug-in "
         "estimate is biased upwards and its scale is not the paper's (a Weka "
-        "discretisation on 200 individuals); compare ranks rather than bits.",
+        "discretisation on 200 individuals); compare ranks rather than bits. The "
+        "chance column of each relevance table measures that bias; where it is close "
+        "to the MI, NS-SD+'s weights are mostly noise.",
         "- **Curves.** Re-evaluation in "
         f"{some.evaluation.reevaluation_trials} fresh trials (the paper: up to "
         f"{PAPER.evaluation.reevaluation_trials}), harmonic mean as in the authors' "

@@ -101,11 +101,15 @@ class RunData:
     def generations(self) -> int:
         return len(self.fitness)
 
+    def sdbc(self, generation: int) -> np.ndarray:
+        """The raw SDBC vectors (N, D) float32 of one generation."""
+        with np.load(_individuals_path(self.path, generation)) as data:
+            return np.asarray(data["sdbc"])
+
     def sdbc_generations(self) -> Iterator[np.ndarray]:
         """The raw SDBC vectors (N, D) float32 of each generation, in order."""
         for g in range(self.generations):
-            with np.load(_individuals_path(self.path, g)) as data:
-                yield np.asarray(data["sdbc"])
+            yield self.sdbc(g)
 
 
 def _individuals_path(run: Path, generation: int) -> Path:
