@@ -4,6 +4,7 @@ checkpoints. (Runs on the real engine are in test_experiment_engine.py.)"""
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -189,6 +190,30 @@ def test_a_checkpoint_of_another_configuration_is_refused(
     with pytest.raises(CheckpointError, match=message):
         Experiment.resume(config_from_dict(data), tmp_path, ToyEvaluator(), TOY_INFO)
     assert snapshot(tmp_path) == before
+
+
+def test_a_checkpoint_from_before_a_setting_existed_resumes(tmp_path: Path) -> None:
+    # As if written before `weighting.update_every` was a setting: its default
+    # (every generation) is what the run did, so the run goes on.
+    run(small_config(generations=2), tmp_path)
+    path = tmp_path / "checkpoint.npz"
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    meta = json.loads(str(arrays["meta"]))
+    del meta["config"]["weighting"]["update_every"]
+    arrays["meta"] = np.array(json.dumps(meta))
+    np.savez(path, **arrays)
+    experiment = Experiment.resume(
+        small_config(generations=3), tmp_path, ToyEvaluator(), TOY_INFO
+    )
+    assert experiment.state.generation == 2
+    meta["config"]["weighting"]["update_every"] = 5
+    arrays["meta"] = np.array(json.dumps(meta))
+    np.savez(path, **arrays)
+    with pytest.raises(CheckpointError, match="weighting.update_every: 5"):
+        Experiment.resume(
+            small_config(generations=3), tmp_path, ToyEvaluator(), TOY_INFO
+        )
 
 
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "empty", "missing"])

@@ -149,7 +149,7 @@ def load_checkpoint(path: str | Path, config: dict[str, Any]) -> Checkpoint:
             f"checkpoint {path} is from task {saved.get('task')!r}, this run is task "
             f"{config.get('task')!r}"
         )
-    differences = config_differences(saved, config)
+    differences = config_differences(_as_loaded_now(saved), config)
     if differences:
         listed = "; ".join(
             f"{key}: {old!r} in the checkpoint, {new!r} now"
@@ -169,6 +169,19 @@ def load_checkpoint(path: str | Path, config: dict[str, Any]) -> Checkpoint:
     )
     _check_shapes(path, checkpoint)
     return checkpoint
+
+
+def _as_loaded_now(saved: dict[str, Any]) -> dict[str, Any]:
+    """A checkpoint's configuration as this code reads it: a setting added since
+    the checkpoint was written takes its default, so adding one with the old
+    behaviour as default leaves every run resumable. Left as it is if it no
+    longer loads (a setting since removed), so the difference is named."""
+    from sdbc_evolution.config import ConfigError, config_from_dict
+
+    try:
+        return config_from_dict(saved).resolved().to_dict()
+    except (ConfigError, TypeError, ValueError):
+        return saved
 
 
 def config_differences(
