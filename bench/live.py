@@ -124,6 +124,7 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
         ProcessGraph,
         child_environment,
         load_graph_file,
+        trial_graph,
     )
     from sdbc_sim.nodes.interface import RECORDER_NODE, TASK_STATE_TOPIC
 
@@ -132,22 +133,16 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     graph_file = tmp / "graph.yaml"
     graph_file.write_text(
         yaml.safe_dump(
-            {
-                "sdbc_graph": {
-                    "ros__parameters": {
-                        "robots_per_process": args.robots_per_process,
-                        "record_topics": ["/task_state", "/markers"],
-                    }
+            trial_graph(
+                args.task,
+                genome,
+                {"max_steps": args.steps},
+                launcher={
+                    "robots_per_process": args.robots_per_process,
+                    "record_topics": ["/task_state", "/markers"],
                 },
-                "/**": {
-                    "ros__parameters": {
-                        "task": args.task,
-                        "task_config": {"max_steps": args.steps},
-                    }
-                },
-                "simulator": {"ros__parameters": {"marker_period": args.marker_period}},
-                "/**/controller": {"ros__parameters": {"genome": genome.tolist()}},
-            }
+                nodes={"simulator": {"marker_period": args.marker_period}},
+            )
         )
     )
     env = child_environment()

@@ -57,6 +57,8 @@ LAUNCH_KEY = "sdbc_graph"
 :class:`LaunchSettings`."""
 SHARED_KEY = "/**"
 """Parameter section that every node reads; it names the task."""
+CONTROLLERS_KEY = "/**/controller"
+"""Parameter section of every controller node (in any robot's namespace)."""
 SHM_DIR = Path("/dev/shm")
 """Where Fast DDS keeps its shared-memory segments and locks."""
 DDS_FILE_PREFIXES = ("fastrtps_", "sem.fastrtps_")
@@ -470,6 +472,33 @@ class ProcessGraph:
         self.stop()
 
 
+def trial_graph(
+    task: str,
+    genome: Sequence[float],
+    task_config: Mapping[str, Any] | None = None,
+    launcher: Mapping[str, Any] | None = None,
+    nodes: Mapping[str, Mapping[str, Any]] | None = None,
+) -> dict[str, Any]:
+    """The contents of a graph file that runs ``task`` with every controller on
+    ``genome`` (what ``sdbc-graph --trial`` needs), to be dumped as YAML.
+
+    Args:
+        task: Task name.
+        genome: The controllers' network weights.
+        task_config: The task's settings.
+        launcher: :class:`LaunchSettings` values (the ``sdbc_graph`` section).
+        nodes: More parameters by node name, e.g. ``{"simulator": {...}}``.
+    """
+    return {
+        LAUNCH_KEY: {"ros__parameters": dict(launcher or {})},
+        SHARED_KEY: {
+            "ros__parameters": {"task": task, "task_config": dict(task_config or {})}
+        },
+        **{name: {"ros__parameters": dict(p)} for name, p in (nodes or {}).items()},
+        CONTROLLERS_KEY: {"ros__parameters": {"genome": [float(w) for w in genome]}},
+    }
+
+
 def _has_genome(graph: GraphFile) -> bool:
     return any(
         "genome" in section.get("ros__parameters", {})
@@ -594,7 +623,7 @@ def _main(args: argparse.Namespace) -> int:
         ):
             raise GraphError(
                 f"graph file {args.graph}: --trial needs a genome for the controllers "
-                "('/**/controller: {ros__parameters: {genome: [...]}}')"
+                f"('{CONTROLLERS_KEY}: {{ros__parameters: {{genome: [...]}}}}')"
             )
         if args.record is not None and args.record.exists():
             raise GraphError(f"--record: {args.record} exists already; not overwriting")

@@ -80,6 +80,7 @@ def start_live_graph(
         ProcessGraph,
         child_environment,
         load_graph_file,
+        trial_graph,
     )
     from sdbc_evolution.nodes.graph_client import GraphClient
     from sdbc_sim.tasks import make_task
@@ -87,15 +88,13 @@ def start_live_graph(
     graph_file = tmp / "graph.yaml"
     graph_file.write_text(
         yaml.safe_dump(
-            {
-                "sdbc_graph": {
-                    "ros__parameters": {"robots_per_process": robots_per_process}
-                },
-                "/**": {
-                    "ros__parameters": {"task": task_name, "task_config": task_config}
-                },
-                "simulator": {
-                    "ros__parameters": {
+            trial_graph(
+                task_name,
+                genome,
+                task_config,
+                launcher={"robots_per_process": robots_per_process},
+                nodes={
+                    "simulator": {
                         # Longer than Fast DDS needs to free its shared-memory
                         # port after a controller is SIGKILLed mid-write (seen:
                         # the other robots' commands then stall for up to ~2 s).
@@ -104,8 +103,7 @@ def start_live_graph(
                         **(simulator or {}),
                     }
                 },
-                "/**/controller": {"ros__parameters": {"genome": genome.tolist()}},
-            }
+            )
         )
     )
     env = child_environment()
