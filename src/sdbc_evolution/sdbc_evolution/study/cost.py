@@ -179,6 +179,7 @@ def projections(
     workers: tuple[int, ...] = CLUSTER_WORKERS,
 ) -> list[Projection]:
     """The projection of every measured task that ``preset`` holds."""
+    runs = preset.runs * len(preset.treatments)
     out = []
     for cost in costs:
         if cost.task not in preset.tasks:
@@ -186,7 +187,6 @@ def projections(
         for w in workers:
             expected, cpu = projected_hours(cost, preset, w, cost.mean_length)
             bound, _ = projected_hours(cost, preset, w, float(cost.max_steps))
-            runs = preset.runs * len(preset.treatments)
             out.append(Projection(cost.task, w, expected, bound, cpu, runs))
     return out
 

@@ -463,9 +463,11 @@ def _projection(analysis: Analysis) -> list[str]:
     by_task: dict[str, dict[int, Projection]] = {}
     for p in analysis.projections:
         by_task.setdefault(p.task, {})[p.workers] = p
+    # CPU hours and runs do not depend on W: any projection of the task has them.
+    task_wide = {task: next(iter(values.values())) for task, values in by_task.items()}
     rows = []
     for task, values in by_task.items():
-        some = next(iter(values.values()))
+        some = task_wide[task]
         rows.append(
             [
                 TASK_TITLES.get(task, task),
@@ -477,12 +479,11 @@ def _projection(analysis: Analysis) -> list[str]:
                 for w in workers
             ]
         )
-    firsts = [next(iter(v.values())) for v in by_task.values()]
     rows.append(
         [
             "**all tasks**",
-            f"{sum(p.cpu_hours for p in firsts):,.0f}",
-            f"{max(p.cpu_hours / p.runs for p in firsts):,.1f}",
+            f"{sum(p.cpu_hours for p in task_wide.values()):,.0f}",
+            f"{max(p.cpu_hours / p.runs for p in task_wide.values()):,.1f}",
         ]
         + [
             f"{sum(by_task[t][w].expected_hours for t in by_task):,.1f} "
