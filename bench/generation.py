@@ -28,15 +28,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sdbc_evolution.archive import NoveltyArchive
-from sdbc_evolution.config import (
+from sdbc_evolution.ga.archive import NoveltyArchive
+from sdbc_evolution.run.config import (
     EvaluationConfig,
     ExperimentConfig,
     GaConfig,
     Treatment,
 )
-from sdbc_evolution.evaluators import LocalEvaluator
-from sdbc_evolution.experiment import Experiment, task_spec
+from sdbc_evolution.run.evaluators import LocalEvaluator
+from sdbc_evolution.run.experiment import Experiment, task_spec
 from sdbc_sim.tasks import available_tasks
 
 SIMULATOR_PHASES = ("evaluation", "reevaluation")

@@ -120,7 +120,7 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rosbags.highlevel import AnyReader
-    from sdbc_evolution.launch import (
+    from sdbc_evolution.graph.launch import (
         ProcessGraph,
         child_environment,
         load_graph_file,

@@ -23,8 +23,8 @@ setup(
         "console_scripts": [
             "evolution_node = sdbc_evolution.nodes.evolution_node:main",
             "recorder = sdbc_evolution.nodes.recorder_node:main",
-            "sdbc-graph = sdbc_evolution.launch:main",
-            "sdbc-evolve = sdbc_evolution.cli:main",
+            "sdbc-graph = sdbc_evolution.graph.launch:main",
+            "sdbc-evolve = sdbc_evolution.run.cli:main",
             "sdbc-study = sdbc_evolution.study.cli:main",
         ],
     },

@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from sdbc_evolution.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
-from sdbc_evolution.results import TIME_COLUMNS, read_generations, read_individuals
+from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
+from sdbc_evolution.run.results import TIME_COLUMNS, read_generations, read_individuals
 from sdbc_sim.engine import controller_fitness
 
 TOY_INFO = TaskInfo(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.archive import NoveltyArchive
+from sdbc_evolution.ga.archive import NoveltyArchive
 
 
 def test_fills_then_replaces_random_entries_in_draw_order() -> None:

@@ -5,14 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from sdbc_evolution.cli import main
-from sdbc_evolution.config import (
+from sdbc_evolution.run.cli import main
+from sdbc_evolution.run.config import (
     ExperimentConfig,
     config_from_dict,
     load_config,
     quickstart_config,
 )
-from sdbc_evolution.results import read_generations
+from sdbc_evolution.run.results import read_generations
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
@@ -163,13 +163,13 @@ def test_sigterm_to_the_command_alone_stops_it_and_resume_finishes(
     import sys
     import time
 
-    from sdbc_evolution.results import ResultsDirectory
+    from sdbc_evolution.run.results import ResultsDirectory
 
     config = tmp_path / "longer.yaml"
     config.write_text(TINY.replace("generations: 2", "generations: 40"))
     out = tmp_path / "run"
     command = [
-        sys.executable, "-m", "sdbc_evolution.cli", "--config", str(config),
+        sys.executable, "-m", "sdbc_evolution.run.cli", "--config", str(config),
         "--out", str(out), "--workers", "2", "--quiet", "--no-gif",
     ]  # fmt: skip
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from sdbc_evolution.config import (
+from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
     Treatment,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.evaluators import (
+from sdbc_evolution.run.evaluators import (
     DaskEvaluator,
     Evaluation,
     LocalEvaluator,

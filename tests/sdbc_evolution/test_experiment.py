@@ -10,12 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from evolution_helpers import TOY_INFO, ToyEvaluator, assert_same_run, snapshot
-from sdbc_evolution.checkpoint import CheckpointError
-from sdbc_evolution.config import Treatment, config_from_dict
-from sdbc_evolution.experiment import Experiment, ExperimentError
-from sdbc_evolution.results import read_generations, read_individuals
-
-from sdbc_evolution import checkpoint as checkpoint_module
+from sdbc_evolution.run import checkpoint as checkpoint_module
+from sdbc_evolution.run.checkpoint import CheckpointError
+from sdbc_evolution.run.config import Treatment, config_from_dict
+from sdbc_evolution.run.experiment import Experiment, ExperimentError
+from sdbc_evolution.run.results import read_generations, read_individuals
 
 TREATMENTS = [t.value for t in Treatment]
 
@@ -143,12 +142,12 @@ def test_resume_after_a_crash_between_outputs_and_checkpoint(
             raise KeyboardInterrupt
         real_save(path, checkpoint)
 
-    monkeypatch.setattr("sdbc_evolution.experiment.save_checkpoint", crash_at_3)
+    monkeypatch.setattr("sdbc_evolution.run.experiment.save_checkpoint", crash_at_3)
     with pytest.raises(KeyboardInterrupt):
         run(config, tmp_path / "crashed")
     # Generation 2's outputs were written but its checkpoint was not.
     assert len(read_generations(tmp_path / "crashed")["generation"]) == 3
-    monkeypatch.setattr("sdbc_evolution.experiment.save_checkpoint", real_save)
+    monkeypatch.setattr("sdbc_evolution.run.experiment.save_checkpoint", real_save)
     resume(config, tmp_path / "crashed")
     assert_same_run(tmp_path / "straight", tmp_path / "crashed")
 

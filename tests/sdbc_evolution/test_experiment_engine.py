@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 from evolution_helpers import assert_same_run
-from sdbc_evolution.config import config_from_dict
-from sdbc_evolution.evaluators import DaskEvaluator, LocalEvaluator
-from sdbc_evolution.experiment import Experiment, task_spec
+from sdbc_evolution.run.config import config_from_dict
+from sdbc_evolution.run.evaluators import DaskEvaluator, LocalEvaluator
+from sdbc_evolution.run.experiment import Experiment, task_spec
 
 
 def tiny(treatment: str, generations: int):

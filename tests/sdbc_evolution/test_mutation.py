@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.stats import truncnorm
-from sdbc_evolution.mutation import gaussian_mutation
+from sdbc_evolution.ga.mutation import gaussian_mutation
 
 
 class ScriptedGenerator:

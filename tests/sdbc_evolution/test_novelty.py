@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.novelty import novelty_scores
+from sdbc_evolution.ga.novelty import novelty_scores
 
 
 def test_mean_distance_to_k_nearest_among_population_and_archive() -> None:

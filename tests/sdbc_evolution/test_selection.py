@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.selection import elites, fitness_order, tournament_selection
+from sdbc_evolution.ga.selection import elites, fitness_order, tournament_selection
 
 
 class ScriptedIntegers:

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.archive import NoveltyArchive
-from sdbc_evolution.config import NoveltyConfig, Treatment
-from sdbc_evolution.evaluators import Evaluation
-from sdbc_evolution.novelty import novelty_scores
-from sdbc_evolution.ranking import nsga2_order
+from sdbc_evolution.ga.archive import NoveltyArchive
+from sdbc_evolution.ga.novelty import novelty_scores
+from sdbc_evolution.ga.ranking import nsga2_order
+from sdbc_evolution.ga.treatments import score_generation
+from sdbc_evolution.run.config import NoveltyConfig, Treatment
+from sdbc_evolution.run.evaluators import Evaluation
 from sdbc_evolution.sdbc.standardise import StandardisationSettings, standardise
 from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information_weights
-from sdbc_evolution.treatments import score_generation
 
 NOVELTY = NoveltyConfig(k=3, archive_probability=0.5, archive_size=10)
 

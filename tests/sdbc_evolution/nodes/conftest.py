@@ -17,7 +17,7 @@ GRAPH_TIMEOUT = 600.0
 
 @pytest.fixture
 def run_graph(tmp_path: Path):
-    """Runs ``python -m sdbc_evolution.launch ARGS`` (``sdbc-graph``); returns the
+    """Runs ``python -m sdbc_evolution.graph.launch ARGS`` (``sdbc-graph``); returns the
     completed process, its output in ``stdout`` and ``stderr``."""
 
     def run(*args: str) -> subprocess.CompletedProcess:
@@ -25,7 +25,7 @@ def run_graph(tmp_path: Path):
         env["ROS_HOME"] = str(tmp_path / "ros_home")
         env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
         return subprocess.run(
-            [sys.executable, "-m", "sdbc_evolution.launch", *args],
+            [sys.executable, "-m", "sdbc_evolution.graph.launch", *args],
             capture_output=True,
             text=True,
             env=env,

@@ -32,8 +32,8 @@ def test_live_evolution_equals_the_command_line_and_publishes_its_progress(
     tmp_path, run_graph, graph_logs
 ):
     from rosbags.highlevel import AnyReader
-    from sdbc_evolution.cli import main as evolve
-    from sdbc_evolution.results import read_generations, read_individuals
+    from sdbc_evolution.run.cli import main as evolve
+    from sdbc_evolution.run.results import read_generations, read_individuals
 
     experiment = tmp_path / "experiment.yaml"
     experiment.write_text(yaml.safe_dump(EXPERIMENT))

@@ -10,9 +10,8 @@ from pathlib import Path
 
 import pytest
 import yaml
-from sdbc_evolution.launch import GraphError, graph_processes, load_graph_file
-
-from sdbc_evolution import launch
+from sdbc_evolution.graph import launch
+from sdbc_evolution.graph.launch import GraphError, graph_processes, load_graph_file
 
 # Graph files name nodes' parameters; reading them needs the ROS 2 workspace.
 pytestmark = pytest.mark.ros
@@ -137,7 +136,14 @@ def test_the_command_line_refuses_bad_input_with_status_2(tmp_path):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     no_genome = write(tmp_path, minimal())
     result = subprocess.run(
-        [sys.executable, "-m", "sdbc_evolution.launch", str(no_genome), "--trial", "1"],
+        [
+            sys.executable,
+            "-m",
+            "sdbc_evolution.graph.launch",
+            str(no_genome),
+            "--trial",
+            "1",
+        ],
         capture_output=True,
         text=True,
         env=env,
@@ -150,7 +156,7 @@ def test_the_command_line_refuses_bad_input_with_status_2(tmp_path):
         [
             sys.executable,
             "-m",
-            "sdbc_evolution.launch",
+            "sdbc_evolution.graph.launch",
             str(ROOT / "configs" / "ros" / "gate_escape.yaml"),
             "--record",
             str(tmp_path / "bag"),

@@ -91,7 +91,7 @@ def test_one_command_records_a_trial_that_rosbags_decodes_whole(
 
 
 def test_an_existing_bag_is_never_overwritten(tmp_path):
-    from sdbc_evolution.bags import BagWriter
+    from sdbc_evolution.graph.bags import BagWriter
 
     bag = tmp_path / "bag"
     with BagWriter(bag) as writer:
@@ -102,7 +102,7 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
 
 
 def test_an_unknown_message_type_is_named(tmp_path):
-    from sdbc_evolution.bags import BagWriter
+    from sdbc_evolution.graph.bags import BagWriter
 
     with (
         BagWriter(Path(tmp_path) / "bag") as writer,

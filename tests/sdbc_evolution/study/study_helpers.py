@@ -6,7 +6,7 @@ import csv
 from pathlib import Path
 
 import numpy as np
-from sdbc_evolution.results import GENERATIONS_FILE, TIME_COLUMNS
+from sdbc_evolution.run.results import GENERATIONS_FILE, TIME_COLUMNS
 from sdbc_evolution.study.presets import StudyPreset, preset_from_dict
 
 TINY = {

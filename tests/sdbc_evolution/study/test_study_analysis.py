@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from sdbc_evolution.config import Treatment
-from sdbc_evolution.results import read_generations
+from sdbc_evolution.run.config import Treatment
+from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.sdbc.characterisation import dimension_names
 from sdbc_evolution.study.analysis import FIGURES_DIR, REPORT_FILE, TABLES_DIR
 from sdbc_evolution.study.cli import main

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from sdbc_evolution.config import DEFAULT_GENERATIONS, ExperimentConfig, Treatment
+from sdbc_evolution.run.config import DEFAULT_GENERATIONS, ExperimentConfig, Treatment
 from sdbc_evolution.study.presets import (
     PRESET_NAMES,
     PresetError,

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 import yaml
-from sdbc_evolution.config import Treatment
-from sdbc_evolution.evaluators import LocalEvaluator
-from sdbc_evolution.experiment import Experiment, task_spec
-from sdbc_evolution.results import read_generations
+from sdbc_evolution.run.config import Treatment
+from sdbc_evolution.run.evaluators import LocalEvaluator
+from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.study import runner
 from sdbc_evolution.study.plan import (
     DISCARDED_DIR,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.config import Treatment
+from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.claims import (
     Verdict,
     above,

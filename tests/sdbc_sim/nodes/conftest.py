@@ -76,13 +76,13 @@ def start_live_graph(
     import rclpy
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.node import Node
-    from sdbc_evolution.launch import (
+    from sdbc_evolution.graph.client import GraphClient
+    from sdbc_evolution.graph.launch import (
         ProcessGraph,
         child_environment,
         load_graph_file,
         trial_graph,
     )
-    from sdbc_evolution.nodes.graph_client import GraphClient
     from sdbc_sim.tasks import make_task
 
     graph_file = tmp / "graph.yaml"

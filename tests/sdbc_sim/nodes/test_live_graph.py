@@ -18,7 +18,7 @@ SEEDS = np.array([1, 2, 3], dtype=np.int64)
 def batched(live, genome: np.ndarray, seeds: np.ndarray):
     """The batched engine's evaluation of ``genome`` in ``seeds`` (the local
     evaluator's code path, SDBC extractor included)."""
-    from sdbc_evolution.evaluators import TaskSpec, evaluate_chunk
+    from sdbc_evolution.run.evaluators import TaskSpec, evaluate_chunk
 
     spec = TaskSpec(live.task_name, live.task_config)
     return evaluate_chunk(spec, genome[None], seeds[None])
@@ -36,8 +36,8 @@ def assert_same_evaluation(got, expected) -> None:
 
 
 def test_a_genome_evaluated_live_equals_the_batched_engine(gate_escape_graph):
-    from sdbc_evolution.evaluators import TaskSpec
-    from sdbc_evolution.nodes.live_evaluator import LiveEvaluator
+    from sdbc_evolution.graph.live_evaluator import LiveEvaluator
+    from sdbc_evolution.run.evaluators import TaskSpec
 
     live = gate_escape_graph
     evaluator = LiveEvaluator(TaskSpec(live.task_name, live.task_config), live.client)
@@ -54,7 +54,7 @@ def test_a_genome_evaluated_live_equals_the_batched_engine(gate_escape_graph):
 def test_a_bad_genome_is_rejected_with_a_reason_and_the_controller_keeps_running(
     gate_escape_graph,
 ):
-    from sdbc_evolution.nodes.graph_client import GenomeRejected
+    from sdbc_evolution.graph.client import GenomeRejected
 
     live = gate_escape_graph
     client = live.client

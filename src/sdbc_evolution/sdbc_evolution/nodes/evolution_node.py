@@ -1,8 +1,8 @@
 """``evolution_node``: an evolutionary experiment as a ROS 2 node.
 
 The node runs the same experiment as the command line (``sdbc-evolve``): the same
-configuration files and overrides (:func:`sdbc_evolution.cli.resolve_config`), the
-same runner (:class:`sdbc_evolution.experiment.Experiment`), the same output
+configuration files and overrides (:func:`sdbc_evolution.run.cli.resolve_config`), the
+same runner (:class:`sdbc_evolution.run.experiment.Experiment`), the same output
 directory, checkpoints and ``resume``. After every generation it publishes its
 statistics on ``generation_stats`` (sdbc_msgs/GenerationStats) and the generation's
 best genome on ``best_genome`` (std_msgs/Float64MultiArray, latched).
@@ -11,7 +11,7 @@ Where the trials run is the ``evaluator`` parameter:
 
 - ``local``: the engine, in this machine's processes (``workers``), as the command
   line does;
-- ``live``: through the live graph (:class:`~sdbc_evolution.nodes.live_evaluator.
+- ``live``: through the live graph (:class:`~sdbc_evolution.graph.live_evaluator.
   LiveEvaluator`): for each genome the node sets the controllers' ``genome``
   parameters, asks the simulator for the trials, and builds the SDBC vectors from
   the ``task_state`` topic. Same results as ``local``, to round-off; much slower.
@@ -59,14 +59,14 @@ from sdbc_sim.nodes.interface import (
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
-from sdbc_evolution.checkpoint import CheckpointError
-from sdbc_evolution.cli import default_out, resolve_config
-from sdbc_evolution.config import ConfigError, ExperimentConfig
-from sdbc_evolution.evaluators import Evaluator, make_evaluator
-from sdbc_evolution.experiment import Experiment, task_spec
-from sdbc_evolution.nodes.graph_client import GraphClient, GraphClientError, Stopped
-from sdbc_evolution.nodes.live_evaluator import LiveEvaluator
-from sdbc_evolution.results import GenerationRecord
+from sdbc_evolution.graph.client import GraphClient, GraphClientError, Stopped
+from sdbc_evolution.graph.live_evaluator import LiveEvaluator
+from sdbc_evolution.run.checkpoint import CheckpointError
+from sdbc_evolution.run.cli import default_out, resolve_config
+from sdbc_evolution.run.config import ConfigError, ExperimentConfig
+from sdbc_evolution.run.evaluators import Evaluator, make_evaluator
+from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.results import GenerationRecord
 from sdbc_msgs.msg import GenerationStats
 
 EVALUATORS = ("local", "live")

@@ -3,7 +3,7 @@
 The node ``recorder`` subscribes to each requested topic as soon as the topic
 appears in the graph (its type read from the graph), and writes every message
 as received, stamped with its time of arrival, through
-:class:`sdbc_evolution.bags.BagWriter`. Ctrl-C (SIGINT) or SIGTERM closes the bag
+:class:`sdbc_evolution.graph.bags.BagWriter`. Ctrl-C (SIGINT) or SIGTERM closes the bag
 cleanly: the MCAP file is finished and ``metadata.yaml`` written.
 
 Messages are taken straight from an rcl wait set, bytes as they arrived, without
@@ -44,7 +44,7 @@ from sdbc_sim.nodes.interface import (
     split_ros_arguments,
 )
 
-from sdbc_evolution.bags import BagWriter, message_class
+from sdbc_evolution.graph.bags import BagWriter, message_class
 
 DISCOVERY_PERIOD = 0.2
 """Seconds between looks at the graph for requested topics not yet recorded."""

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from sdbc_evolution.config import Treatment
+from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.claims import (
     ALPHA,
     Claim,

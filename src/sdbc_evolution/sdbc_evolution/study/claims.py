@@ -29,7 +29,7 @@ from enum import Enum
 
 import numpy as np
 
-from sdbc_evolution.config import Treatment
+from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.quality import PairTest, mann_whitney
 from sdbc_evolution.study.relevance import RelevanceTable

@@ -26,8 +26,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sdbc_evolution.evaluators import SchedulerUnreachable, add_evaluator_arguments
-from sdbc_evolution.stopping import stoppable
+from sdbc_evolution.run.evaluators import SchedulerUnreachable, add_evaluator_arguments
+from sdbc_evolution.run.stopping import stoppable
 from sdbc_evolution.study.presets import (
     PRESET_NAMES,
     PresetError,

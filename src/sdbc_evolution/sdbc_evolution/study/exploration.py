@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sdbc_evolution.config import Treatment
+from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.rundirs import RunData, StudyData
 
 BMU_CHUNK = 4096

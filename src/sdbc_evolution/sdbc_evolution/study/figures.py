@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.config import Treatment
+from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.claims import LABELS, TASK_TITLES
 from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.quality import Curves

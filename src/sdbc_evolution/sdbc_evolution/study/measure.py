@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.evaluators import LocalEvaluator, TaskInfo
-from sdbc_evolution.experiment import Experiment, task_spec
+from sdbc_evolution.run.evaluators import LocalEvaluator, TaskInfo
+from sdbc_evolution.run.experiment import Experiment, task_spec
 from sdbc_evolution.study.presets import StudyPreset
 
 PROBE_GENERATIONS = 3

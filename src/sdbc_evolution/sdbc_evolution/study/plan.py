@@ -1,7 +1,7 @@
 """The runs of a study: where each one lives, its seed, and how far it got.
 
 A study directory holds one run directory per (task, treatment, run index), in the
-layout of :mod:`sdbc_evolution.results`::
+layout of :mod:`sdbc_evolution.run.results`::
 
     STUDY/
       study.yaml                the preset the study was started with
@@ -26,9 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.checkpoint import CheckpointError, load_checkpoint
-from sdbc_evolution.config import ConfigError, ExperimentConfig, Treatment, load_config
-from sdbc_evolution.results import CONFIG_FILE, ResultsDirectory
+from sdbc_evolution.run.checkpoint import CheckpointError, load_checkpoint
+from sdbc_evolution.run.config import (
+    ConfigError,
+    ExperimentConfig,
+    Treatment,
+    load_config,
+)
+from sdbc_evolution.run.results import CONFIG_FILE, ResultsDirectory
 from sdbc_evolution.study.presets import StudyPreset
 
 STUDY_FILE = "study.yaml"

@@ -3,8 +3,8 @@ the sizes of its runs.
 
 A preset is a YAML file (``configs/study/NAME.yaml``) mirroring :class:`StudyPreset`;
 keys left out keep the paper's values (SPEC.md), which are the dataclass defaults
-here and in :mod:`sdbc_evolution.config`. Every run of the study is an
-:class:`~sdbc_evolution.config.ExperimentConfig` built from the preset's
+here and in :mod:`sdbc_evolution.run.config`. Every run of the study is an
+:class:`~sdbc_evolution.run.config.ExperimentConfig` built from the preset's
 ``experiment`` section (the same schema as an ``sdbc-evolve`` configuration, without
 the keys the study sets itself), the task's generations and task settings, the
 treatment and a seed of its own. Bad presets raise :class:`PresetError` naming the
@@ -30,7 +30,7 @@ from typing import Any
 
 import yaml
 
-from sdbc_evolution.config import (
+from sdbc_evolution.run.config import (
     DEFAULT_GENERATIONS,
     ConfigError,
     ExperimentConfig,
@@ -148,7 +148,7 @@ class StudyPreset:
     def validate(self) -> None:
         """Builds every run's configuration and every task once, so that bad
         settings fail now, before any run starts."""
-        from sdbc_evolution.experiment import task_spec
+        from sdbc_evolution.run.experiment import task_spec
 
         for task in self.tasks:
             for treatment in self.treatments:

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sdbc_evolution.config import Treatment
-from sdbc_evolution.results import WEIGHT_PREFIX
+from sdbc_evolution.run.config import Treatment
+from sdbc_evolution.run.results import WEIGHT_PREFIX
 from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information
 from sdbc_evolution.study.rundirs import RunData, StudyData
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sdbc_evolution.config import DEFAULT_GENERATIONS, ExperimentConfig
+from sdbc_evolution.run.config import DEFAULT_GENERATIONS, ExperimentConfig
 from sdbc_evolution.study.claims import (
     LABELS,
     PAPER_RELEVANCE,

@@ -1,7 +1,7 @@
 """Reading a study's run directories for the analysis, and saying which are unusable.
 
 The analysis knows runs only through the output layout of
-:mod:`sdbc_evolution.results`: any directory under the study directory holding a
+:mod:`sdbc_evolution.run.results`: any directory under the study directory holding a
 ``config.yaml`` is a run (hidden directories such as ``.discarded`` excepted), its
 task and treatment are read from that file. A run is usable when every generation the
 configuration asks for is there, whole: ``generations.csv`` parses, has one row per
@@ -28,14 +28,14 @@ from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.config import (
+from sdbc_evolution.run.config import (
     DEFAULT_GENERATIONS,
     ConfigError,
     ExperimentConfig,
     Treatment,
     load_config,
 )
-from sdbc_evolution.results import (
+from sdbc_evolution.run.results import (
     BASE_COLUMNS,
     CONFIG_FILE,
     GENERATIONS_FILE,

@@ -14,7 +14,7 @@ Where the work goes:
   mutual information, output) that a pool shared by one run would leave idle.
   ``workers=1`` runs everything in this process.
 - **Dask** (``scheduler``): one run after the other, each generation's trials spread
-  over the cluster by :class:`~sdbc_evolution.evaluators.DaskEvaluator`.
+  over the cluster by :class:`~sdbc_evolution.run.evaluators.DaskEvaluator`.
 
 Each run directory gets ``study_run.json``: how each stretch of its generations was
 run (evaluator, workers per run, runs side by side), which the cost analysis needs
@@ -39,15 +39,15 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-from sdbc_evolution.evaluators import (
+from sdbc_evolution.run.evaluators import (
     DEFAULT_CONNECT_TIMEOUT,
     Evaluator,
     LocalEvaluator,
     make_evaluator,
 )
-from sdbc_evolution.experiment import Experiment, task_spec
-from sdbc_evolution.results import atomic_write_bytes
-from sdbc_evolution.stopping import STOP_SIGNALS
+from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.results import atomic_write_bytes
+from sdbc_evolution.run.stopping import STOP_SIGNALS
 from sdbc_evolution.study.plan import (
     LOG_FILE,
     STUDY_FILE,

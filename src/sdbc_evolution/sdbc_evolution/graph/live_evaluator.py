@@ -1,11 +1,11 @@
 """An evaluator that runs every trial through the live ROS 2 graph.
 
 It plugs into the experiment runner like the local and Dask evaluators
-(:class:`sdbc_evolution.evaluators.Evaluator`): for each genome it sets the genome
+(:class:`sdbc_evolution.run.evaluators.Evaluator`): for each genome it sets the genome
 on the controller nodes, runs the genome's trials one after another on the
 simulator node, and builds the SDBC vectors from the task state topic
-(:class:`~sdbc_evolution.nodes.graph_client.GraphClient`). A controller's values
-sum up exactly as in :func:`sdbc_evolution.evaluators.evaluate_chunk`: fitness by
+(:class:`~sdbc_evolution.graph.client.GraphClient`). A controller's values
+sum up exactly as in :func:`sdbc_evolution.run.evaluators.evaluate_chunk`: fitness by
 the engine's controller aggregate (harmonic mean by default), the task-specific
 characterisation and the SDBC as arithmetic means over trials. Live and batched
 evaluations of a genome then agree to round-off.
@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from sdbc_sim.engine import controller_fitness
 
-from sdbc_evolution.evaluators import Evaluation, Evaluator, TaskSpec
-from sdbc_evolution.nodes.graph_client import GraphClient
+from sdbc_evolution.graph.client import GraphClient
+from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskSpec
 
 
 class LiveEvaluator(Evaluator):

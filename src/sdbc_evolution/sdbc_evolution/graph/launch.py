@@ -50,7 +50,7 @@ from typing import Any
 
 import yaml
 
-from sdbc_evolution.stopping import stoppable
+from sdbc_evolution.run.stopping import stoppable
 
 LAUNCH_KEY = "sdbc_graph"
 """Top-level key of a graph file whose ``ros__parameters`` are the

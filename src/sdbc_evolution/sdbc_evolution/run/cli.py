@@ -27,22 +27,22 @@ from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.checkpoint import CheckpointError
-from sdbc_evolution.config import (
+from sdbc_evolution.run.checkpoint import CheckpointError
+from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
     Treatment,
     load_config,
     quickstart_config,
 )
-from sdbc_evolution.evaluators import (
+from sdbc_evolution.run.evaluators import (
     SchedulerUnreachable,
     add_evaluator_arguments,
     make_evaluator,
 )
-from sdbc_evolution.experiment import Experiment, ExperimentError, task_spec
-from sdbc_evolution.results import CONFIG_FILE, read_generations
-from sdbc_evolution.stopping import stoppable
+from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
+from sdbc_evolution.run.results import CONFIG_FILE, read_generations
+from sdbc_evolution.run.stopping import stoppable
 
 RESULTS_ROOT = Path("results")
 """Where runs go when ``--out`` is not given."""

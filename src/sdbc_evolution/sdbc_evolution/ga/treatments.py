@@ -25,14 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from sdbc_evolution.archive import NoveltyArchive
-from sdbc_evolution.config import NoveltyConfig, Treatment
-from sdbc_evolution.evaluators import Evaluation
-from sdbc_evolution.novelty import novelty_scores
-from sdbc_evolution.ranking import nsga2_order
+from sdbc_evolution.ga.archive import NoveltyArchive
+from sdbc_evolution.ga.novelty import novelty_scores
+from sdbc_evolution.ga.ranking import nsga2_order
+from sdbc_evolution.ga.selection import fitness_order
+from sdbc_evolution.run.config import NoveltyConfig, Treatment
+from sdbc_evolution.run.evaluators import Evaluation
 from sdbc_evolution.sdbc.standardise import StandardisationSettings, standardise
 from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information_weights
-from sdbc_evolution.selection import fitness_order
 
 SEED_BOUND = 2**31 - 1
 """Seeds handed to scikit-learn must fit a 32-bit signed integer."""

@@ -11,7 +11,7 @@ The replication study and the analysis read this layout; it is kept stable::
         gen_00000.npz       every individual evaluated in generation 0, see below
         gen_00001.npz       ...
       checkpoint.npz        everything needed to resume after the last generation
-                            (see ``sdbc_evolution.checkpoint``)
+                            (see ``sdbc_evolution.run.checkpoint``)
 
 ``generations.csv`` columns, in order:
 

@@ -6,7 +6,7 @@ the bit-identical resume contract):
 1. trial seeds: (N, T) int64 from the GA's generator, fresh every generation (elites
    too: they are re-evaluated in new trials);
 2. evaluation of the population (any evaluator: same results);
-3. scoring by the treatment (``sdbc_evolution.treatments``): NS-SD+ weights, novelty
+3. scoring by the treatment (``sdbc_evolution.ga.treatments``): NS-SD+ weights, novelty
    against population + archive, archive update, ranking order;
 4. breeding: the ``elites`` first individuals of the order are copied, the other
    N - elites are bounded-Gaussian mutants of tournament winners;
@@ -14,7 +14,7 @@ the bit-identical resume contract):
    seeds come from a second generator, so turning re-evaluation on or off does not
    change the run; its fitness sums the trials up like every fitness (harmonic
    mean by default);
-6. outputs (``sdbc_evolution.results``), then the checkpoint (``checkpoint.npz``).
+6. outputs (``sdbc_evolution.run.results``), then the checkpoint (``checkpoint.npz``).
 
 The run's two generators are children of ``np.random.SeedSequence(seed)``. A run
 stopped anywhere and resumed from its checkpoint repeats nothing and skips nothing:
@@ -32,21 +32,21 @@ from pathlib import Path
 import numpy as np
 from sdbc_sim.engine import controller_fitness
 
-from sdbc_evolution.archive import NoveltyArchive
-from sdbc_evolution.checkpoint import (
+from sdbc_evolution.ga.archive import NoveltyArchive
+from sdbc_evolution.ga.mutation import gaussian_mutation
+from sdbc_evolution.ga.ranking import positions
+from sdbc_evolution.ga.selection import elites, tournament_selection
+from sdbc_evolution.ga.treatments import GenerationScores, score_generation
+from sdbc_evolution.run.checkpoint import (
     Checkpoint,
     CheckpointError,
     generator_from_state,
     load_checkpoint,
     save_checkpoint,
 )
-from sdbc_evolution.config import ExperimentConfig, dump_config
-from sdbc_evolution.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
-from sdbc_evolution.mutation import gaussian_mutation
-from sdbc_evolution.ranking import positions
-from sdbc_evolution.results import GenerationRecord, ResultsDirectory
-from sdbc_evolution.selection import elites, tournament_selection
-from sdbc_evolution.treatments import GenerationScores, score_generation
+from sdbc_evolution.run.config import ExperimentConfig, dump_config
+from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
+from sdbc_evolution.run.results import GenerationRecord, ResultsDirectory
 
 TRIAL_SEED_BOUND = 2**63 - 1
 """Trial seeds are drawn uniformly from [0, 2^63 - 1)."""

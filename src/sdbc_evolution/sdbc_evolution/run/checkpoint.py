@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from sdbc_evolution.results import atomic_write_bytes, npz_bytes
+from sdbc_evolution.run.results import atomic_write_bytes, npz_bytes
 
 FORMAT_VERSION = 1
 """Bumped whenever the checkpoint's content changes meaning."""
@@ -176,7 +176,7 @@ def _as_loaded_now(saved: dict[str, Any]) -> dict[str, Any]:
     the checkpoint was written takes its default, so adding one with the old
     behaviour as default leaves every run resumable. Left as it is if it no
     longer loads (a setting since removed), so the difference is named."""
-    from sdbc_evolution.config import ConfigError, config_from_dict
+    from sdbc_evolution.run.config import ConfigError, config_from_dict
 
     try:
         return config_from_dict(saved).resolved().to_dict()

@@ -1,0 +1,2 @@
+"""The genetic algorithm: novelty, the archive, rankings, selection, mutation and
+treatments."""

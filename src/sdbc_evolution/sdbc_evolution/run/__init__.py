@@ -1,0 +1,2 @@
+"""Running an experiment: configuration, evaluators, results, checkpoints and
+sdbc-evolve."""
