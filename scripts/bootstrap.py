@@ -120,7 +120,9 @@ def venv_include_dirs() -> tuple[str, str]:
 
 
 def fix_cmake_exports() -> None:
-    """Points the rosidl Python exports at this interpreter (wheel pitfall 1)."""
+    """Points the rosidl Python exports at this interpreter.
+
+    docs/ros2-from-pypi.md, pitfall 1."""
     python_include, numpy_include = venv_include_dirs()
     builder_numpy = re.compile(
         r"/opt/python/cp3\d+-cp3\d+/lib/python3\.\d+/site-packages/numpy/[\w/]*include"

@@ -1,4 +1,5 @@
-"""Typed configuration: defaults from SPEC.md, clear errors naming the key."""
+"""Typed configuration: defaults from docs/reference-setup.md, clear errors naming
+the key."""
 
 from __future__ import annotations
 

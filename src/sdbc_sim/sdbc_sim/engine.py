@@ -11,9 +11,10 @@ The same stepping code serves one trial driven from outside, step by step
 (:class:`TrialStepper`, for the live ROS graph), so a trial run live and in a batch
 give the same results to the bit when the outputs come from the same network.
 
-Per-controller aggregates (Gomes et al.; SPEC.md "Evolution"): fitness is the
-harmonic mean over a controller's T trials, T / sum_t 1 / max(F_t, 1e-4), as in the
-authors' code, or the arithmetic mean; the characterisation is the arithmetic mean.
+Per-controller aggregates (Gomes et al.; docs/reference-setup.md "Evolution"):
+fitness is the harmonic mean over a controller's T trials, T / sum_t 1 / max(F_t, 1e-4),
+as in the authors' code, or the arithmetic mean; the characterisation is the arithmetic
+mean.
 """
 
 from __future__ import annotations

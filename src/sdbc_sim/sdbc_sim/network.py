@@ -1,6 +1,6 @@
 """The controller: a feed-forward network with one hidden layer.
 
-SPEC.md, "Neural controller".
+docs/reference-setup.md, "Neural controller".
 
 Inputs are linear; the hidden and output units are sigmoids with a bias:
 

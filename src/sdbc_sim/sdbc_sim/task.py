@@ -4,7 +4,7 @@ How to write a task
 ===================
 
 A task is one module in ``sdbc_sim/tasks/`` holding a settings dataclass (every
-number of SPEC.md as a default, one docstring line per field, checked in
+number of docs/reference-setup.md as a default, one docstring line per field, checked in
 ``__post_init__``) and a :class:`Task` subclass with class attributes ``name`` and
 ``config_class``, and ends with ``TASK = MyTask``: the registry
 (:func:`sdbc_sim.tasks.make_task`) finds it there. It never touches the engine.

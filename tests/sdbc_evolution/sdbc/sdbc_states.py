@@ -1,7 +1,7 @@
 """Hand-made task descriptions and task states for the SDBC tests.
 
-The descriptions follow SPEC.md's three tasks, written out here so that the SDBC can
-be tested without the engine; tests against the real tasks are in
+The descriptions follow the three tasks of docs/reference-setup.md, written out here
+so that the SDBC can be tested without the engine; tests against the real tasks are in
 test_task_characterisations.py.
 """
 

@@ -29,7 +29,8 @@ PAPER_TASKS = {
 def test_characterisation_length_and_description(name: str) -> None:
     length, expected = PAPER_TASKS[name]
     description = make_task(name).description
-    # The task's groups are SPEC.md's, as written out by hand in sdbc_states.
+    # The task's groups are those of docs/reference-setup.md, as written out by
+    # hand in sdbc_states.
     assert description == expected
     assert len(dimension_names(description)) == length
 

@@ -157,7 +157,7 @@ def test_same_seed_same_start() -> None:
 
 
 def count_sdbc_features(task: GateEscape) -> int:
-    """Features per SPEC.md's rules, from the task description alone."""
+    """Features per docs/method.md's rules, from the task description alone."""
     groups = task.description.groups
     n = 0
     for i, g in enumerate(groups):

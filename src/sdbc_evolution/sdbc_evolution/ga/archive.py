@@ -1,10 +1,10 @@
 """The novelty archive: a bounded random sample of past behaviours.
 
-Policy (SPEC.md, "Evolution", after the authors' code): after novelty has been
-scored, every individual of the generation is added with probability p (0.03);
-once the archive holds its maximum (1000) entries, a new entry replaces one chosen
-uniformly at random. Individuals are offered in population order, each drawing one
-uniform number, and each replacement draws one index, all from the GA's generator,
+Policy (docs/reference-setup.md, "Evolution", after the authors' code): after
+novelty has been scored, every individual of the generation is added with probability p
+(0.03); once the archive holds its maximum (1000) entries, a new entry replaces one
+chosen uniformly at random. Individuals are offered in population order, each drawing
+one uniform number, and each replacement draws one index, all from the GA's generator,
 so the archive is a function of the run's seed.
 
 The archive keeps the *raw* behaviour vectors: SDBC vectors are re-standardised

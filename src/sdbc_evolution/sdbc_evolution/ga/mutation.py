@@ -7,8 +7,9 @@ Each gene x of a genome mutates independently with probability p (0.05):
 and a value outside the gene bounds [low, high] = [-1, 1] is redrawn from the same
 distribution around x (not clipped, which would pile genes on the bounds). As in
 ECJ, which the authors used, after ``max_redraws`` out-of-bounds draws the gene
-takes a uniform value in the bounds instead; with SPEC.md's numbers a redraw is
-needed at most half the time and that fallback never happens in practice.
+takes a uniform value in the bounds instead; with the numbers of
+docs/reference-setup.md a redraw is needed at most half the time and that fallback never
+happens in practice.
 
 Draw order, all from one generator: one uniform per gene of the batch (which genes
 mutate), one normal per mutating gene, then one normal per gene still out of bounds

@@ -9,7 +9,7 @@ A reader then decodes every message without this project installed.
 
 Messages are written as the CDR bytes received from a subscription (``raw=True``),
 never re-serialised: ``rclpy.serialization.serialize_message`` may append padding
-that rosbags rejects (ROS2-WHEELS.md, pitfall 7).
+that rosbags rejects (docs/ros2-from-pypi.md, pitfall 7).
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Typed configuration of an evolutionary experiment, loaded from YAML.
 
-Every number of SPEC.md's "Evolution" section is a default here, in one place. A
-YAML file mirrors the dataclasses (sections ``ga``, ``novelty``, ``standardisation``,
-``weighting``, ``evaluation``, plus top-level ``task``, ``task_config``, ``treatment``,
-``generations`` and ``seed``); keys left out keep their defaults. Unknown keys,
-wrong types and out-of-range values raise :class:`ConfigError` naming the key, before
-any work runs.
+Every number of the "Evolution" section of docs/reference-setup.md is a default
+here, in one place. A YAML file mirrors the dataclasses (sections ``ga``, ``novelty``,
+``standardisation``, ``weighting``, ``evaluation``, plus top-level ``task``,
+``task_config``, ``treatment``, ``generations`` and ``seed``); keys left out keep their
+defaults. Unknown keys, wrong types and out-of-range values raise :class:`ConfigError`
+naming the key, before any work runs.
 
 Example::
 
@@ -55,8 +55,8 @@ DEFAULT_GENERATIONS: dict[str, int] = {
     "resource_sharing": 750,
     "predator_prey": 750,
 }
-"""Generations per task in the paper's runs (SPEC.md); other tasks must set
-``generations`` explicitly."""
+"""Generations per task in the paper's runs (docs/reference-setup.md); other tasks
+must set ``generations`` explicitly."""
 
 
 QUICKSTART_GENERATIONS = 40
@@ -247,8 +247,8 @@ class ExperimentConfig:
 
 def quickstart_config() -> ExperimentConfig:
     """The small default experiment of the command line: NS-SD+ on gate escape,
-    sized to finish in two to three minutes on two cores (SPEC.md's settings
-    otherwise).
+    sized to finish in two to three minutes on two cores (the settings of
+    docs/reference-setup.md otherwise).
     ``configs/quickstart.yaml`` holds the same values."""
     return ExperimentConfig(
         task="gate_escape",

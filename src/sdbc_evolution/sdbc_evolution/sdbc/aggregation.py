@@ -6,7 +6,7 @@ dimensions, and the trial length one more (section "Aggregation of feature sampl
 - the mean over the trial ignoring undefined steps,
   ``M_f = sum_{t: x_f(t) defined} x_f(t) / |{t: x_f(t) defined}|``, 0 if never defined;
 - the final value ``F_f = x_f(t*)`` with t* the last step where x_f is defined,
-  0 if never defined (the authors' choice; SPEC.md is silent);
+  0 if never defined (the authors' choice; the paper is silent);
 - the trial length T.
 
 The vector is ordered ``[M_1 .. M_F, F_1 .. F_F, T]``: length ``2 F + 1``.
@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 UNDEFINED_VALUE = 0.0
-"""M_f and F_f of a feature never defined during a trial (SPEC.md: "0 if all NaN")."""
+"""M_f and F_f of a feature never defined during a trial (docs/method.md,
+"Aggregation")."""
 
 
 def characterisation_length(n_features: int) -> int:

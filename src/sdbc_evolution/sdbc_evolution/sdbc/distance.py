@@ -8,8 +8,9 @@ f_D(e_i, e_j) estimates the physical distance between two entities from their sh
 - circle-polygon: ``min_s dist(c_i, s) - r_i`` over the polygon's segments s;
 - polygon-polygon: ``min_{s, s'} dist(s, s')``, 0 where two segments cross.
 
-Overlapping shapes are touching, hence 0, as in the authors' code (SPEC.md states the
-floor for circle-circle; it changes no other case for shapes that do not overlap).
+Overlapping shapes are touching, hence 0, as in the authors' code (docs/method.md
+states the floor for circle-circle; it changes no other case for shapes that do not
+overlap).
 
 Layout: slot-major, batch last. A group's discs are ``(S, B|1)`` arrays of x, y and
 radius; its polygons are ``(P, S, B|1)`` arrays of segment end points. Every

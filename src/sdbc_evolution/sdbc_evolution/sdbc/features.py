@@ -10,8 +10,9 @@ step yields, group by group in the description's order:
 3. ``D_g = sum_{i != j} f_D(e_i, e_j) / (|g| (|g| - 1))``, the dispersion: the
    mean distance of each entity to the others (eq. 4), only if the group is not
    static and ``eta_max > 1``. The paper's eq. 4 divides by ``(|g| - 1)^2``; its text
-   and the authors' code take the mean, which SPEC.md follows. f_D is symmetric, so
-   the mean over ordered pairs i != j is the mean over unordered pairs i < j;
+   and the authors' code take the mean, which docs/method.md follows. f_D is
+   symmetric, so the mean over ordered pairs i != j is the mean over unordered
+   pairs i < j;
 4. ``d(g, h) = sum_{e_i in g} sum_{e_j in h} f_D(e_i, e_j) / (|g| |h|)``, the mean
    distance to every later group h (eq. 5), unless both groups are static.
 

@@ -7,7 +7,7 @@ the novelty archive, and the archive is re-standardised with the same coefficien
 
     b'_k = clip((b_k - mu_k) / sigma_k, -c, c)
 
-where sigma_k = 0 is read as 1 (a constant dimension stays 0) and c = 3 (SPEC.md,
+where sigma_k = 0 is read as 1 (a constant dimension stays 0) and c = 3 (docs/method.md,
 from the authors' code: the three-sigma rule keeps one outlier from squashing a
 dimension).
 """
@@ -24,9 +24,9 @@ class StandardisationSettings:
     """How raw characterisations are standardised.
 
     Attributes:
-        clip: c, standardised values are clipped to [-c, c]; SPEC.md: 3.
+        clip: c, standardised values are clipped to [-c, c]; docs/method.md: 3.
         ddof: Delta degrees of freedom of sigma_k: 1 for the sample standard
-            deviation as in the authors' code (SPEC.md is silent), 0 for the
+            deviation as in the authors' code (the paper is silent), 0 for the
             population one.
     """
 

@@ -13,7 +13,7 @@ I(F; k) is computed on discretised variables, in bits:
 - fitness F into 10 clusters by 1-D k-means, as the authors did (fewer clusters when
   there are fewer distinct fitness values: each value is then its own cluster);
 - feature k into 10 equal-width bins over the population's range, the default here
-  (the authors' Weka ranker discretised features itself; SPEC.md leaves the method
+  (the authors' Weka ranker discretised features itself; the paper leaves the method
   open); k-means, like fitness, is the option;
 - ``I = sklearn.metrics.mutual_info_score(F, k) / ln 2`` (nats to bits), at most
   log2(10) = 3.3 bits with 10 classes a side.

@@ -1,7 +1,8 @@
 """The paper's claims, and our verdict on each from a study's numbers.
 
-Every claim the paper makes in its results (section "Results and Analysis", SPEC.md
-"Analysis the paper reports") is one :class:`Claim`, judged with the same test:
+Every claim the paper makes in its results (section "Results and Analysis";
+docs/reference-setup.md, "Analysis the paper reports") is one :class:`Claim`, judged
+with the same test:
 
 - **A above B, significant** (e.g. "every NS variant beats Fit, p < 0.05"): agree
   when our two-sided Mann-Whitney p < alpha and A beats B more often than not

@@ -14,10 +14,10 @@ worker):
   (ranking, mutual information, output: the parts no worker shares);
 - generations per second of a run at the study's own sizes.
 
-Projection of a preset (by default ``paper``, SPEC.md's settings) run by this
-study's command on a Dask cluster of W workers, runs one after the other, each
-generation's N controllers spread over min(W, N) workers (a controller's trials
-stay together)::
+Projection of a preset (by default ``paper``, the settings of
+docs/reference-setup.md) run by this study's command on a Dask cluster of W workers,
+runs one after the other, each generation's N controllers spread over min(W, N) workers
+(a controller's trials stay together)::
 
     T(W) = runs x treatments x G x (c N + B L (N T + T_r) / (r min(W, N)))
 
@@ -192,7 +192,8 @@ def projections(
 
 
 def paper_preset() -> StudyPreset:
-    """The ``paper`` preset, or SPEC.md's settings if its file is not at hand."""
+    """The ``paper`` preset, or the settings of docs/reference-setup.md if its file
+    is not at hand."""
     try:
         return load_preset("paper")
     except PresetError:

@@ -2,9 +2,9 @@
 the sizes of its runs.
 
 A preset is a YAML file (``configs/study/NAME.yaml``) mirroring :class:`StudyPreset`;
-keys left out keep the paper's values (SPEC.md), which are the dataclass defaults
-here and in :mod:`sdbc_evolution.run.config`. Every run of the study is an
-:class:`~sdbc_evolution.run.config.ExperimentConfig` built from the preset's
+keys left out keep the paper's values (docs/reference-setup.md), which are the
+dataclass defaults here and in :mod:`sdbc_evolution.run.config`. Every run of the study
+is an :class:`~sdbc_evolution.run.config.ExperimentConfig` built from the preset's
 ``experiment`` section (the same schema as an ``sdbc-evolve`` configuration, without
 the keys the study sets itself), the task's generations and task settings, the
 treatment and a seed of its own. Bad presets raise :class:`PresetError` naming the

@@ -42,7 +42,7 @@ CLAIM_TOPICS = {
 }
 """The report's claim tables, in the paper's order."""
 PAPER = ExperimentConfig()
-"""The paper's settings (SPEC.md), for the side-by-side sizes."""
+"""The paper's settings (docs/reference-setup.md), for the side-by-side sizes."""
 
 
 def _f(x: float, digits: int = 3) -> str:
@@ -385,9 +385,9 @@ def _differences(analysis: Analysis) -> list[str]:
         "sharing charges a robot within 1 unit of the station's centre) is harder "
         "than for the authors' robots.",
         "- **Task details.** The paper's parameter table is lost; the tasks follow "
-        "SPEC.md, i.e. the authors' code where the paper is silent, and the paper's "
-        "fitness formulas (gate escape uses (g + t/tau)/(1 + N), not the code's "
-        "variant).",
+        "docs/reference-setup.md, i.e. the authors' code where the paper is silent, "
+        "and the paper's fitness formulas (gate escape uses (g + t/tau)/(1 + N), "
+        "not the code's variant).",
         "- **Mutual information.** Fitness in 10 k-means clusters, features in 10 "
         "equal-width bins, estimated on one population of "
         f"{some.ga.population_size}: with few individuals per cell the plug-in "
@@ -446,9 +446,10 @@ def _projection(analysis: Analysis) -> list[str]:
     if not analysis.projections:
         return lines
     lines += [
-        "Projected wall time of the `paper` preset (SPEC.md: 20 runs x 4 treatments, "
-        "population 200, 10 trials, 50 re-evaluation trials, 500/750/750 "
-        "generations) run by `sdbc-study run --preset paper --scheduler ADDRESS` on a "
+        "Projected wall time of the `paper` preset (docs/reference-setup.md: 20 runs "
+        "x 4 treatments, population 200, 10 trials, 50 re-evaluation trials, "
+        "500/750/750 generations) run by "
+        "`sdbc-study run --preset paper --scheduler ADDRESS` on a "
         "Dask cluster of W workers, runs one after the other, each generation's "
         "controllers spread over min(W, 200) workers: T(W) = runs x treatments x G x "
         "(c N + B L (N T + T_r) / (r min(W, N))), r and c as measured above, L the "

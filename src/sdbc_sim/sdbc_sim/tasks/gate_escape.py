@@ -1,4 +1,4 @@
-"""Gate escape (SPEC.md, "Tasks"; Gomes, Mariano & Christensen, ALIFE 2014).
+"""Gate escape (Gomes, Mariano & Christensen, ALIFE 2014; docs/reference-setup.md).
 
 A team of robots in a walled square arena must leave through a gate in the middle
 of the left wall. The gate starts closing when the first robot passes and is closed
@@ -31,7 +31,7 @@ Sensors (inputs, in this order; readings in [-1, 1] as in the authors' code,
 Outputs: speed o0 x ``max_speed``, 0 if o2 > ``stop_threshold``; turn
 (2 o1 - 1) x ``max_turn`` radians, applied before the move.
 
-Choices where SPEC.md is silent (from the authors' code where it says):
+Choices where the paper is silent (from the authors' code where it says):
 - Start: robot i at distance (i + 1) x ``start_spacing`` from the gate centre, at an
   angle drawn uniformly in [0, 2 pi) and redrawn until the robot lies inside the
   arena without touching a wall or an earlier robot; heading uniform in [-pi, pi).
@@ -75,7 +75,7 @@ _MAX_START_DRAWS = 100_000
 
 @dataclass(frozen=True)
 class GateEscapeConfig:
-    """Settings of the gate escape task; defaults from SPEC.md.
+    """Settings of the gate escape task; defaults from docs/reference-setup.md.
 
     Attributes:
         arena_size: Side of the square arena.

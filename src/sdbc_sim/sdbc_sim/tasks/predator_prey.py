@@ -1,4 +1,6 @@
-"""Predator-prey pursuit (SPEC.md, "Tasks"; Gomes, Mariano & Christensen, ALIFE 2014).
+"""Predator-prey pursuit (Gomes, Mariano & Christensen, ALIFE 2014).
+
+Numbers and their sources: docs/reference-setup.md, "Tasks".
 
 Three predators, evolved, must catch a preprogrammed prey that runs away from them
 faster than they can drive. Only teamwork (cornering the prey, closing in from
@@ -38,14 +40,14 @@ distances edge to edge d, read 2 d / size - 1 and not capped, bearings / pi):
 Outputs: speed o0 x ``predator_speed``; turn (2 o1 - 1) x ``max_turn`` radians,
 applied before the move.
 
-Choices where SPEC.md is silent (from the authors' code, MASE fd13449, where it says):
+Choices where the paper is silent (from the authors' code, MASE fd13449, where it says):
 - Order within a step: the prey decides from the positions before the step, then
   predators and prey move together (one physics step), then capture, then leaving.
   A capture and a leaving at the same step count as a capture.
 - Leaving: the centre strictly outside [0, size]^2.
 - d_i and d_f are both centre to centre, d_i taken from the bodies before the
   first step (the authors' code took d_i edge to edge, d_f centre to centre); the
-  characterisation divides d_f by the diagonal as SPEC.md says (the authors' code:
+  characterisation divides d_f by the diagonal as the paper says (the authors' code:
   the edge-to-edge mean / (diagonal / 2), capped at 1).
 - A predator touching the prey (edge distance 0) does not count in u, whose
   weight 1 / d_i it would make infinite (authors' code); capture comes first anyway.
@@ -75,7 +77,7 @@ from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescr
 
 @dataclass(frozen=True)
 class PredatorPreyConfig:
-    """Settings of the predator-prey task; defaults from SPEC.md.
+    """Settings of the predator-prey task; defaults from docs/reference-setup.md.
 
     Attributes:
         arena_size: Side of the square chase zone [0, size]^2 (open: no walls).

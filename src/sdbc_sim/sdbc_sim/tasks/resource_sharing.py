@@ -1,4 +1,4 @@
-"""Resource sharing (SPEC.md, "Tasks"; Gomes, Mariano & Christensen, ALIFE 2014).
+"""Resource sharing (Gomes, Mariano & Christensen, ALIFE 2014; docs/reference-setup.md).
 
 A team of robots shares a single charging station in the middle of an open arena.
 Every robot spends energy at each step, more the faster it drives; a robot that
@@ -50,7 +50,7 @@ Sensors (inputs, in this order; readings as in the authors' code):
 Outputs: speed o0 x ``max_speed``, 0 if o2 > ``stop_threshold``; turn
 (2 o1 - 1) x ``max_turn`` radians, applied before the move.
 
-Choices where SPEC.md is silent (from the authors' code, MASE fd13449, where it says):
+Choices where the paper is silent (from the authors' code, MASE fd13449, where it says):
 - No walls: the arena is open, as in the authors' code; robots may wander off.
 - Start: robot i uniform in [r, size - r]^2 (wholly inside the arena), redrawn until
   its centre is at least ``start_separation`` from the station centre and from every
@@ -99,7 +99,7 @@ _MAX_START_DRAWS = 100_000
 
 @dataclass(frozen=True)
 class ResourceSharingConfig:
-    """Settings of the resource sharing task; defaults from SPEC.md.
+    """Settings of the resource sharing task; defaults from docs/reference-setup.md.
 
     Attributes:
         arena_size: Side of the square arena (open: no walls).
@@ -111,7 +111,8 @@ class ResourceSharingConfig:
             and between a robot and the station centre.
         station_radius: Radius of the charging station at the arena centre.
         max_energy: e_max, the most energy a robot can hold.
-        initial_energy: Energy of every robot at the start (SPEC.md: e_max).
+        initial_energy: Energy of every robot at the start (e_max in
+            docs/reference-setup.md).
         min_energy_drain: Energy spent per step by a stopped robot.
         max_energy_drain: Energy spent per step by a robot at full speed; the drain
             grows linearly with the speed command in between.
@@ -242,7 +243,7 @@ class ResourceSharingConfig:
     @property
     def docking_distance(self) -> float:
         """Largest centre distance to the station centre at which a robot lies
-        wholly on the station (SPEC.md: 1)."""
+        wholly on the station (docs/reference-setup.md: 1)."""
         return self.station_radius - self.robot_radius
 
 
