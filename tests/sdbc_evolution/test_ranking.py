@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-from sdbc_evolution.ga.ranking import (
+from sdbc_evolution.ga.rankings.nsga2 import (
     crowding_distance,
     domination_matrix,
     non_dominated_fronts,

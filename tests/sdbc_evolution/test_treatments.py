@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from sdbc_evolution.ga.archive import NoveltyArchive
 from sdbc_evolution.ga.novelty import novelty_scores
-from sdbc_evolution.ga.ranking import nsga2_order
+from sdbc_evolution.ga.rankings.nsga2 import nsga2_order
 from sdbc_evolution.ga.treatments import score_generation
 from sdbc_evolution.run.config import NoveltyConfig, Treatment
 from sdbc_evolution.run.evaluators import Evaluation

@@ -34,7 +34,7 @@ from sdbc_sim.engine import controller_fitness
 
 from sdbc_evolution.ga.archive import NoveltyArchive
 from sdbc_evolution.ga.mutation import gaussian_mutation
-from sdbc_evolution.ga.ranking import positions
+from sdbc_evolution.ga.rankings.nsga2 import positions
 from sdbc_evolution.ga.selection import elites, tournament_selection
 from sdbc_evolution.ga.treatments import GenerationScores, score_generation
 from sdbc_evolution.run.checkpoint import (

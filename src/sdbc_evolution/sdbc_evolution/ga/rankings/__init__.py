@@ -1,0 +1,1 @@
+"""Rankings: how a scored generation becomes the order selection reads."""
