@@ -120,12 +120,8 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rosbags.highlevel import AnyReader
-    from sdbc_evolution.graph.launch import (
-        ProcessGraph,
-        child_environment,
-        load_graph_file,
-        trial_graph,
-    )
+    from sdbc_evolution.graph.graph_file import load_graph_file, trial_graph
+    from sdbc_evolution.graph.processes import ProcessGraph, child_environment
     from sdbc_sim.nodes.interface import RECORDER_NODE, TASK_STATE_TOPIC
 
     from sdbc_msgs.srv import RunTrial

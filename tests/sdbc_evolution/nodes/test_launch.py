@@ -10,8 +10,9 @@ from pathlib import Path
 
 import pytest
 import yaml
-from sdbc_evolution.graph import launch
-from sdbc_evolution.graph.launch import GraphError, graph_processes, load_graph_file
+from sdbc_evolution.graph import shm
+from sdbc_evolution.graph.graph_file import GraphError, load_graph_file
+from sdbc_evolution.graph.processes import graph_processes
 
 # Graph files name nodes' parameters; reading them needs the ROS 2 workspace.
 pytestmark = pytest.mark.ros
@@ -173,7 +174,7 @@ def test_the_command_line_refuses_bad_input_with_status_2(tmp_path):
 def test_orphaned_dds_files_are_removed_and_files_in_use_are_kept(
     tmp_path, monkeypatch
 ):
-    monkeypatch.setattr(launch, "SHM_DIR", tmp_path)
+    monkeypatch.setattr(shm, "SHM_DIR", tmp_path)
     orphan = tmp_path / "fastrtps_0123456789abcdef"
     orphan_lock = tmp_path / "fastrtps_0123456789abcdef_el"
     semaphore = tmp_path / "sem.fastrtps_port7411_mutex"
@@ -183,15 +184,15 @@ def test_orphaned_dds_files_are_removed_and_files_in_use_are_kept(
         path.write_bytes(b"\0" * 16)
     # A running process (this one) holds one of them open.
     with in_use.open("rb"):
-        removed = launch.remove_orphaned_dds_files(since=0.0)
+        removed = shm.remove_orphaned_dds_files(since=0.0)
     assert sorted(removed) == sorted(p.name for p in (orphan, orphan_lock, semaphore))
     assert in_use.exists() and other.exists()
     assert not orphan.exists()
 
 
 def test_dds_files_older_than_the_graph_are_left_alone(tmp_path, monkeypatch):
-    monkeypatch.setattr(launch, "SHM_DIR", tmp_path)
+    monkeypatch.setattr(shm, "SHM_DIR", tmp_path)
     old = tmp_path / "fastrtps_feedfacefeedface"
     old.write_bytes(b"")
-    assert launch.remove_orphaned_dds_files(since=old.stat().st_ctime + 60.0) == []
+    assert shm.remove_orphaned_dds_files(since=old.stat().st_ctime + 60.0) == []
     assert old.exists()

@@ -77,12 +77,8 @@ def start_live_graph(
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.node import Node
     from sdbc_evolution.graph.client import GraphClient
-    from sdbc_evolution.graph.launch import (
-        ProcessGraph,
-        child_environment,
-        load_graph_file,
-        trial_graph,
-    )
+    from sdbc_evolution.graph.graph_file import load_graph_file, trial_graph
+    from sdbc_evolution.graph.processes import ProcessGraph, child_environment
     from sdbc_sim.tasks import make_task
 
     graph_file = tmp / "graph.yaml"

@@ -1,0 +1,203 @@
+"""Graph files: the whole live graph of a task in one YAML file.
+
+A graph file is a ROS 2 parameters file (``--params-file`` syntax: node name keys,
+``ros__parameters`` below them). The launcher's own settings
+(:class:`LaunchSettings`) are the parameters of the key ``sdbc_graph``, so the file
+stays valid for any node's ``--params-file``. The task is named once, under ``/**``
+(``task``, ``task_config``), so that every node runs the same one.
+:func:`trial_graph` writes the contents of one for a single genome.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+LAUNCH_KEY = "sdbc_graph"
+"""Top-level key of a graph file whose ``ros__parameters`` are the
+:class:`LaunchSettings`."""
+SHARED_KEY = "/**"
+"""Parameter section that every node reads; it names the task."""
+CONTROLLERS_KEY = "/**/controller"
+"""Parameter section of every controller node (in any robot's namespace)."""
+
+
+class GraphError(ValueError):
+    """A graph file or launcher option is malformed; the message names it."""
+
+
+@dataclass(frozen=True)
+class LaunchSettings:
+    """The launcher's settings: the ``sdbc_graph`` section of a graph file.
+
+    Attributes:
+        robots_per_process: Controllers per process; 1 runs each robot's
+            controller in a process of its own.
+        evolution: Start the evolution node.
+        record_topics: Topics the recorder writes to the bag (with ``--record``);
+            empty means :data:`DEFAULT_RECORD_TOPICS` plus every robot's sensors
+            and command.
+        shutdown_timeout: Seconds a process gets to exit after SIGINT before it
+            is killed.
+        ready_timeout: Seconds to wait for the simulator (and the recorder) to
+            come up before ``--trial`` requests.
+        trial_timeout: Seconds to wait for the answer to one ``--trial``.
+    """
+
+    robots_per_process: int = 1
+    evolution: bool = False
+    record_topics: tuple[str, ...] = ()
+    shutdown_timeout: float = 10.0
+    ready_timeout: float = 30.0
+    trial_timeout: float = 600.0
+
+    def __post_init__(self) -> None:
+        if not (
+            isinstance(self.robots_per_process, int) and self.robots_per_process >= 1
+        ):
+            raise GraphError(
+                f"sdbc_graph.robots_per_process: must be an integer >= 1, got "
+                f"{self.robots_per_process!r}"
+            )
+        if not isinstance(self.evolution, bool):
+            raise GraphError(
+                f"sdbc_graph.evolution: must be true or false, got {self.evolution!r}"
+            )
+        topics = self.record_topics
+        if isinstance(topics, str) or not all(isinstance(t, str) and t for t in topics):
+            raise GraphError(
+                "sdbc_graph.record_topics: must be a list of topic names, got "
+                f"{topics!r}"
+            )
+        object.__setattr__(self, "record_topics", tuple(topics))
+        for name in ("shutdown_timeout", "ready_timeout", "trial_timeout"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
+                raise GraphError(
+                    f"sdbc_graph.{name}: must be a positive number, got {value!r}"
+                )
+
+
+@dataclass(frozen=True)
+class GraphFile:
+    """A parsed graph file.
+
+    Attributes:
+        settings: The ``sdbc_graph`` section.
+        parameters: Every other section, as a ROS 2 parameters file holds them.
+        task: The task name, from ``/**``.
+        task_config: The task's setting overrides, from ``/**``.
+    """
+
+    settings: LaunchSettings
+    parameters: dict[str, Any]
+    task: str
+    task_config: dict[str, Any] = field(default_factory=dict)
+
+    def section(self, key: str) -> dict[str, Any]:
+        """The ``ros__parameters`` of section ``key`` (empty if absent)."""
+        return dict(self.parameters.get(key, {}).get("ros__parameters", {}))
+
+
+def load_graph_file(path: str | Path) -> GraphFile:
+    """Reads and checks a graph file.
+
+    Raises:
+        GraphError: Unreadable YAML, a section without ``ros__parameters``, an
+            unknown ``sdbc_graph`` setting, no task under ``/**``, or a task_config
+            that is not a mapping, each named.
+    """
+    from sdbc_sim.nodes.interface import format_task_config, parse_task_config
+
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise GraphError(f"graph file {path}: {error}") from None
+    if not isinstance(data, Mapping):
+        raise GraphError(f"graph file {path}: expected a mapping of sections")
+    data = dict(data)
+    section = data.pop(LAUNCH_KEY, None) or {"ros__parameters": {}}
+    launch = section.get("ros__parameters") if isinstance(section, Mapping) else None
+    if not isinstance(launch, Mapping):
+        raise GraphError(
+            f"graph file {path}: '{LAUNCH_KEY}' needs a 'ros__parameters' mapping"
+        )
+    known = {f.name for f in dataclasses.fields(LaunchSettings)}
+    unknown = sorted(set(launch) - known)
+    if unknown:
+        raise GraphError(
+            f"graph file {path}: unknown {LAUNCH_KEY} settings {unknown}; known: "
+            f"{', '.join(sorted(known))}"
+        )
+    settings = LaunchSettings(**launch)
+    for key, section in data.items():
+        if not (
+            isinstance(section, Mapping)
+            and isinstance(section.get("ros__parameters"), Mapping)
+        ):
+            raise GraphError(
+                f"graph file {path}: section {key!r} needs a 'ros__parameters' mapping"
+            )
+    shared = dict(data.get(SHARED_KEY, {}).get("ros__parameters", {}))
+    task = shared.get("task")
+    if not isinstance(task, str) or not task:
+        raise GraphError(
+            f"graph file {path}: name the task once for every node, as "
+            f"'{SHARED_KEY}: {{ros__parameters: {{task: gate_escape}}}}'"
+        )
+    task_config = shared.get("task_config", {})
+    if isinstance(task_config, str):
+        try:
+            task_config = parse_task_config(task_config)
+        except ValueError as error:
+            raise GraphError(f"graph file {path}: {error}") from None
+    if not isinstance(task_config, Mapping):
+        raise GraphError(
+            f"graph file {path}: '{SHARED_KEY}' task_config must be a mapping of task "
+            f"settings, got {task_config!r}"
+        )
+    # Nodes read task_config as a string parameter.
+    shared["task_config"] = format_task_config(task_config)
+    data[SHARED_KEY] = {"ros__parameters": shared}
+    return GraphFile(settings, data, task, dict(task_config))
+
+
+def trial_graph(
+    task: str,
+    genome: Sequence[float],
+    task_config: Mapping[str, Any] | None = None,
+    launcher: Mapping[str, Any] | None = None,
+    nodes: Mapping[str, Mapping[str, Any]] | None = None,
+) -> dict[str, Any]:
+    """The contents of a graph file that runs ``task`` with every controller on
+    ``genome`` (what ``sdbc-graph --trial`` needs), to be dumped as YAML.
+
+    Args:
+        task: Task name.
+        genome: The controllers' network weights.
+        task_config: The task's settings.
+        launcher: :class:`LaunchSettings` values (the ``sdbc_graph`` section).
+        nodes: More parameters by node name, e.g. ``{"simulator": {...}}``.
+    """
+    return {
+        LAUNCH_KEY: {"ros__parameters": dict(launcher or {})},
+        SHARED_KEY: {
+            "ros__parameters": {"task": task, "task_config": dict(task_config or {})}
+        },
+        **{name: {"ros__parameters": dict(p)} for name, p in (nodes or {}).items()},
+        CONTROLLERS_KEY: {"ros__parameters": {"genome": [float(w) for w in genome]}},
+    }
+
+
+def has_genome(graph: GraphFile) -> bool:
+    """Whether some section of ``graph`` gives the controllers a genome."""
+    return any(
+        "genome" in section.get("ros__parameters", {})
+        for section in graph.parameters.values()
+    )

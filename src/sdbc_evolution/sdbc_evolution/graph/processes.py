@@ -1,0 +1,255 @@
+"""Supervising the node processes of a live graph.
+
+:func:`graph_processes` turns a graph file into processes, each given every
+parameter section as ``--params-file``:
+
+- the simulator (``simulator_node``);
+- the controllers of the task's N robots, ``robots_per_process`` per process
+  (``controller_node --robots ...``; one process per robot by default);
+- the evolution node (``evolution_node``) if ``sdbc_graph.evolution`` is true;
+- the recorder (``recorder``) if a bag directory is given.
+
+:class:`ProcessGraph` starts them and stops them: SIGINT to every process,
+``shutdown_timeout`` seconds for each, SIGKILL for what is left, then the Fast DDS
+shared-memory files they left are removed (:mod:`sdbc_evolution.graph.shm`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from sdbc_evolution.graph.graph_file import GraphError, GraphFile
+from sdbc_evolution.graph.shm import remove_orphaned_dds_files
+
+PARAMETERS_FILE = "parameters.yaml"
+"""The nodes' parameters as ``--params-file`` reads them, in the graph's work dir."""
+
+SIMULATOR_MODULE = "sdbc_sim.nodes.simulator_node"
+CONTROLLER_MODULE = "sdbc_sim.nodes.controller_node"
+EVOLUTION_MODULE = "sdbc_evolution.nodes.evolution_node"
+RECORDER_MODULE = "sdbc_evolution.nodes.recorder_node"
+DEFAULT_RECORD_TOPICS = ("/task_state", "/markers")
+"""Topics recorded when the graph file lists none, besides every robot's sensors
+and command, and the evolution node's topics when it runs."""
+EVOLUTION_TOPICS = ("/generation_stats", "/best_genome")
+"""The evolution node's topics."""
+
+
+@dataclass(frozen=True)
+class NodeProcess:
+    """One process of the graph.
+
+    Attributes:
+        name: Label in logs and messages ("simulator", "controllers 0-1").
+        argv: The command line.
+    """
+
+    name: str
+    argv: tuple[str, ...]
+
+
+def module_command(module: str, *args: str) -> tuple[str, ...]:
+    """Runs ``module`` with this interpreter (works with and without colcon's
+    console scripts)."""
+    return (sys.executable, "-m", module, *args)
+
+
+def child_environment(base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """The environment of node processes: this process's (ROS 2's runtime
+    settings must carry over), with the packages this process imports from on
+    ``PYTHONPATH`` so that children run the same code."""
+    env = dict(os.environ if base is None else base)
+    roots = []
+    for package in ("sdbc_sim", "sdbc_evolution", "sdbc_msgs"):
+        spec = importlib.util.find_spec(package)
+        if spec is not None and spec.submodule_search_locations:
+            roots.append(str(Path(next(iter(spec.submodule_search_locations))).parent))
+    existing = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(roots + existing))
+    return env
+
+
+def graph_processes(
+    graph: GraphFile, params_file: Path, record: Path | None = None
+) -> list[NodeProcess]:
+    """The processes that make up ``graph``, each given ``params_file``."""
+    from sdbc_sim.nodes.interface import COMMAND_TOPIC, SENSORS_TOPIC, robot_topic
+    from sdbc_sim.tasks import make_task
+
+    ros = ("--ros-args", "--params-file", str(params_file))
+    try:
+        n_robots = make_task(graph.task, **graph.task_config).layout.n_controlled
+    except (TypeError, ValueError) as error:
+        raise GraphError(f"graph file: {error}") from None
+    processes = [NodeProcess("simulator", module_command(SIMULATOR_MODULE, *ros))]
+    per = graph.settings.robots_per_process
+    for first in range(0, n_robots, per):
+        robots = [str(i) for i in range(first, min(first + per, n_robots))]
+        label = robots[0] if len(robots) == 1 else f"{robots[0]}-{robots[-1]}"
+        processes.append(
+            NodeProcess(
+                f"controller {label}",
+                module_command(CONTROLLER_MODULE, "--robots", *robots, *ros),
+            )
+        )
+    if graph.settings.evolution:
+        processes.append(
+            NodeProcess("evolution", module_command(EVOLUTION_MODULE, *ros))
+        )
+    if record is not None:
+        topics = list(graph.settings.record_topics) or [
+            *DEFAULT_RECORD_TOPICS,
+            *(EVOLUTION_TOPICS if graph.settings.evolution else ()),
+            *(
+                "/" + robot_topic(i, t)
+                for i in range(n_robots)
+                for t in (SENSORS_TOPIC, COMMAND_TOPIC)
+            ),
+        ]
+        processes.append(
+            NodeProcess(
+                "recorder",
+                module_command(
+                    RECORDER_MODULE, "--output", str(record), "--topics", *topics, *ros
+                ),
+            )
+        )
+    return processes
+
+
+class ProcessGraph:
+    """Runs node processes and stops them cleanly; a context manager.
+
+    Args:
+        processes: What to run.
+        shutdown_timeout: Seconds each process gets to exit after SIGINT.
+        log_dir: If given, each process's output goes to ``<log_dir>/<name>.log``
+            instead of this process's terminal.
+        env: Environment of the processes; default :func:`child_environment`.
+    """
+
+    def __init__(
+        self,
+        processes: Sequence[NodeProcess],
+        shutdown_timeout: float = 10.0,
+        log_dir: Path | None = None,
+        env: Mapping[str, str] | None = None,
+    ) -> None:
+        names = [p.name for p in processes]
+        if len(set(names)) != len(names):
+            raise GraphError(f"process names must be unique, got {names}")
+        self.processes = {p.name: p for p in processes}
+        self.shutdown_timeout = shutdown_timeout
+        self.log_dir = log_dir
+        self.env = dict(env) if env is not None else child_environment()
+        self.running: dict[str, subprocess.Popen] = {}
+        self._started_at = time.time()
+        self._logs: list[Any] = []
+
+    @classmethod
+    def from_graph_file(
+        cls,
+        graph_file: GraphFile,
+        work_dir: Path,
+        record: Path | None = None,
+        log_dir: Path | None = None,
+        env: Mapping[str, str] | None = None,
+    ) -> ProcessGraph:
+        """The processes of ``graph_file``, not started yet; the nodes' parameters
+        go to ``<work_dir>/parameters.yaml``, which must outlive the graph."""
+        params_file = Path(work_dir) / PARAMETERS_FILE
+        params_file.write_text(yaml.safe_dump(graph_file.parameters))
+        return cls(
+            graph_processes(graph_file, params_file, record),
+            graph_file.settings.shutdown_timeout,
+            log_dir,
+            env,
+        )
+
+    def log_path(self, name: str) -> Path | None:
+        """Where process ``name`` writes its output (None: the terminal)."""
+        if self.log_dir is None:
+            return None
+        return self.log_dir / (name.replace(" ", "_") + ".log")
+
+    def start(self, name: str | None = None) -> None:
+        """Starts every process, or only ``name`` (again, after it ended)."""
+        for process in (
+            self.processes.values() if name is None else [self.processes[name]]
+        ):
+            if (
+                process.name in self.running
+                and self.running[process.name].poll() is None
+            ):
+                raise RuntimeError(f"process {process.name!r} is already running")
+            output = None
+            path = self.log_path(process.name)
+            if path is not None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                output = path.open("ab")
+                self._logs.append(output)
+            self.running[process.name] = subprocess.Popen(
+                process.argv,
+                env=self.env,
+                stdout=output,
+                stderr=subprocess.STDOUT if output is not None else None,
+                # Ctrl-C in a terminal reaches the launcher alone; it then stops
+                # the nodes in order.
+                start_new_session=True,
+            )
+
+    def exited(self) -> dict[str, int]:
+        """Processes that have ended, with their exit codes."""
+        return {
+            name: code
+            for name, popen in self.running.items()
+            if (code := popen.poll()) is not None
+        }
+
+    def kill(self, name: str) -> None:
+        """Kills process ``name`` at once (SIGKILL), as a crash would."""
+        popen = self.running[name]
+        popen.kill()
+        popen.wait()
+
+    def stop(self) -> dict[str, int]:
+        """Stops every process: SIGINT, then SIGKILL after ``shutdown_timeout``;
+        then removes the Fast DDS files they left. Returns the exit codes."""
+        for popen in self.running.values():
+            if popen.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    popen.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + self.shutdown_timeout
+        codes = {}
+        for name, popen in self.running.items():
+            try:
+                codes[name] = popen.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                popen.kill()
+                codes[name] = popen.wait()
+        # Fast DDS leaves shared-memory files behind after SIGKILL, and sometimes
+        # after a clean exit too (a port file that another process still mapped).
+        remove_orphaned_dds_files(self._started_at)
+        for log in self._logs:
+            log.close()
+        self._logs.clear()
+        return codes
+
+    def __enter__(self) -> ProcessGraph:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
