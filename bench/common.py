@@ -1,0 +1,107 @@
+"""Pieces the speed benchmarks share: random batches, physics overrides from the
+command line, and pinning to one core."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+
+import numpy as np
+from sdbc_sim.engine import EngineSettings
+from sdbc_sim.physics import PhysicsSettings
+from sdbc_sim.task import Task
+from sdbc_sim.tasks import available_tasks
+
+
+def random_batch(
+    task: Task, genomes: int, trials: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """(G, W) genomes uniform in [-1, 1] and (G, T) trial seeds."""
+    g = rng.uniform(-1.0, 1.0, (genomes, task.genome_length))
+    s = rng.integers(0, 2**31 - 1, (genomes, trials))
+    return g, s
+
+
+def _parse_value(text: str) -> object:
+    low = text.lower()
+    if low == "none":
+        return None
+    if low in ("true", "false"):
+        return low == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def physics_overrides(pairs: list[str] | None) -> dict[str, object]:
+    """``["hash_cell=32", ...]`` as PhysicsSettings keyword arguments; raises
+    ValueError naming a malformed pair or an unknown setting."""
+    known = {f.name for f in dataclasses.fields(PhysicsSettings)}
+    out: dict[str, object] = {}
+    for pair in pairs or ():
+        name, sep, value = pair.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise ValueError(f"--physics: expected NAME=VALUE, got {pair!r}")
+        if name not in known:
+            names = ", ".join(sorted(known))
+            raise ValueError(f"--physics: unknown setting {name!r}; known: {names}")
+        out[name] = _parse_value(value.strip())
+    return out
+
+
+def engine_settings(pairs: list[str] | None) -> EngineSettings:
+    """Engine settings with the given physics overrides (checked by
+    PhysicsSettings itself)."""
+    return EngineSettings(physics=PhysicsSettings(**physics_overrides(pairs)))
+
+
+def pin_to_core(core: int | None) -> int | None:
+    """Pins this process (and the processes it starts later) to ``core``; None
+    picks the last core this process may run on. Returns the core, or None where
+    the platform cannot pin."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    allowed = sorted(os.sched_getaffinity(0))
+    if core is None:
+        core = allowed[-1]
+    if core not in allowed:
+        raise ValueError(f"--core {core}: this process may run on {allowed} only")
+    os.sched_setaffinity(0, {core})
+    return core
+
+
+def add_batch_arguments(
+    parser: argparse.ArgumentParser, genomes: int, trials: int, seed: int
+) -> None:
+    """The options that pick the batch: --task, --genomes, --trials, --steps,
+    --seed, --physics."""
+    parser.add_argument("--task", action="append", help="a task (default: all)")
+    parser.add_argument("--genomes", type=int, default=genomes)
+    parser.add_argument("--trials", type=int, default=trials, help="trials per genome")
+    parser.add_argument("--steps", type=int, help="cap on trial length (max_steps)")
+    parser.add_argument("--seed", type=int, default=seed)
+    parser.add_argument(
+        "--physics", action="append", metavar="NAME=VALUE", help="physics setting"
+    )
+
+
+def batch_arguments(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> tuple[list[str], EngineSettings]:
+    """The tasks (all by default) and engine settings the options name; a bad one
+    ends the program with the parser's error."""
+    try:
+        settings = engine_settings(args.physics)
+    except ValueError as e:
+        parser.error(str(e))
+    known = available_tasks()
+    names = args.task or sorted(known)
+    unknown = sorted(set(names) - set(known))
+    if unknown:
+        parser.error(f"unknown task(s) {unknown}; known: {sorted(known)}")
+    return names, settings

@@ -1,0 +1,377 @@
+"""Side by side with the authors' Java (MASE at fd13449), on one pinned core.
+
+Given a git checkout of MASE (https://github.com/jorgemcgomes/mase) at commit
+fd13449, this benchmark
+
+1. checks that the checkout is at that commit with its sources unmodified;
+2. compiles, with ``javac`` against the jars MASE ships in ``lib/``, only what the
+   three tasks' parameter files name (their simulators and evaluation functions,
+   and the ``SystematicEvaluator``) plus our driver ``bench/MaseBench.java``; javac
+   pulls in what those reference. The classes go to
+   ``~/.cache/sdbc/mase-build/<commit>`` and are reused while the sources and the
+   driver are unchanged;
+3. starts one JVM per task and configuration, each running MASE's own parameter
+   files layered as an evolution run layers them (``ga.params``, the task's file,
+   and ``syseval.params`` on top for the SDBC): ``indiana.params`` (gate escape),
+   ``sharing_f.params`` (resource sharing) and ``oneprey_homo.params``
+   (predator-prey), bare (fitness and task-specific characterisation) and with the
+   systematic evaluator, as in the paper's runs. Each JVM is warmed up with one
+   batch first, as a generation of an evolution run finds it;
+4. interleaves, ``--alternations`` times, one batch of ``--genomes`` random genomes
+   x ``--trials`` trials of each: MASE bare, MASE with SDBC, our engine bare
+   (:func:`sdbc_sim.run_batch`) and our engine with the SDBC extractor (the
+   evolution's path), all on one core (this process and the JVMs it starts are
+   pinned to it, as ``taskset -c CORE`` would), the order reversed on every other
+   alternation;
+5. prints, per task, medians over the alternations of robot-steps per CPU-second
+   (each process's own CPU time, the JVM's JIT and GC threads included) and per
+   wall-second, and the medians of the per-alternation ratios sdbc / MASE.
+
+Robot-steps count every body of every trial for every step it took, as
+``bench/engine.py`` counts them: our task's bodies per trial (gate escape 4
+robots, resource sharing 3, predator-prey 3 predators and the prey) times the steps
+MASE's (or our) trial took. Random genomes are uniform in [-1, 1] in both.
+
+Not part of the tests or CI: it needs MASE's sources, which this repository does
+not include. The machine should otherwise be idle; on a shared one only the ratios
+of one run mean anything.
+
+Run: ``scripts/sdbc bench mase --mase PATH`` (options: ``--alternations``,
+``--genomes``, ``--trials``, ``--task``, ``--core``, ``--seed``, ``--json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from common import pin_to_core, random_batch
+from sdbc_evolution.sdbc.characterisation import SdbcExtractor
+from sdbc_sim.engine import run_batch
+from sdbc_sim.tasks import make_task
+
+COMMIT = "fd13449bab51d23cfa28bd1cfc2f202a5edd5aa6"
+"""The MASE commit of the paper's code."""
+DRIVER = Path(__file__).with_name("MaseBench.java")
+PARAMS = {
+    "gate_escape": "src/mase/app/indiana/indiana.params",
+    "resource_sharing": "src/mase/app/sharing/sharing_f.params",
+    "predator_prey": "src/mase/app/pred/oneprey_homo.params",
+}
+"""Our task -> MASE's parameter file for it."""
+GA_PARAMS = "src/mase/ga.params"
+SYSEVAL_PARAMS = "src/mase/generic/systematic/syseval.params"
+SOURCES = (
+    "src/mase/app/indiana/IndianaSimulator.java",
+    "src/mase/app/indiana/IndianaFitness2.java",
+    "src/mase/app/indiana/IndianaBehaviourEval.java",
+    "src/mase/app/sharing/ResourceSharingSimulator.java",
+    "src/mase/app/sharing/RSFitness2.java",
+    "src/mase/app/sharing/RSBehaviourEval.java",
+    "src/mase/app/pred/PredatorPreySimulator.java",
+    "src/mase/app/pred/OnePreyFitness2.java",
+    "src/mase/app/pred/OnePreyGroupEval2.java",
+    "src/mase/generic/systematic/SystematicEvaluator.java",
+    "src/ec/simple/SimpleEvolutionState.java",
+)
+"""The classes the parameter files name (loaded by reflection, so javac must be
+given them); javac compiles what they reference from src/."""
+CONFIGS = ("mase", "mase+sdbc", "sdbc", "sdbc+sdbc")
+"""MASE bare, MASE with its SystematicEvaluator, our engine bare, our engine with
+the SDBC extractor."""
+
+
+def check_checkout(mase: Path) -> None:
+    """Raises SystemExit unless ``mase`` is a git checkout of COMMIT whose files
+    are unmodified."""
+    if not (mase / "src/mase").is_dir():
+        raise SystemExit(f"mase: {mase} holds no src/mase: not a MASE checkout")
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(mase), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(mase), "status", "--porcelain", "--", "src", "lib"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError) as e:
+        raise SystemExit(f"mase: {mase} is not a git checkout ({e})") from e
+    if head != COMMIT:
+        raise SystemExit(
+            f"mase: {mase} is at {head}, not {COMMIT}; run "
+            f"`git -C {mase} checkout {COMMIT[:7]}`"
+        )
+    if dirty:
+        raise SystemExit(f"mase: {mase} has local changes:\n{dirty}")
+
+
+def classpath_jars(mase: Path) -> list[Path]:
+    jars = sorted((mase / "lib").glob("*.jar"))
+    if not jars:
+        raise SystemExit(f"mase: no jars in {mase / 'lib'}")
+    return jars
+
+
+def build(mase: Path, javac: str) -> Path:
+    """Compiles the needed classes and the driver (once per sources); returns the
+    class directory."""
+    digest = hashlib.sha256(DRIVER.read_bytes())
+    for rel in SOURCES:
+        digest.update(rel.encode())
+    out = Path.home() / ".cache/sdbc/mase-build" / COMMIT[:7] / digest.hexdigest()[:12]
+    if (out / "mase/mason/MaseBench.class").exists():
+        return out
+    tmp = out.with_name(out.name + ".tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    cp = os.pathsep.join(str(j) for j in classpath_jars(mase))
+    cmd = [
+        javac,
+        "-nowarn",
+        "-encoding",
+        "UTF-8",
+        "-d",
+        str(tmp),
+        "-cp",
+        cp,
+        "-sourcepath",
+        str(mase / "src"),
+        str(DRIVER),
+        *(str(mase / rel) for rel in SOURCES),
+    ]
+    print(f"compiling MASE's classes into {out} ...", flush=True)
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"javac failed:\n{done.stdout}\n{done.stderr}")
+    shutil.rmtree(out, ignore_errors=True)
+    tmp.rename(out)
+    return out
+
+
+def layered_params(mase: Path, task: str, sdbc: bool, where: Path) -> Path:
+    """A parameter file whose parents are MASE's own, first found wins:
+    syseval.params (with the SDBC), the task's file, ga.params."""
+    parents = ([SYSEVAL_PARAMS] if sdbc else []) + [PARAMS[task], GA_PARAMS]
+    text = "".join(
+        f"parent.{i} = {(mase / p).resolve()}\n" for i, p in enumerate(parents)
+    )
+    path = where / f"{task}{'_syseval' if sdbc else ''}.params"
+    path.write_text(text)
+    return path
+
+
+class MaseProcess:
+    """One warm JVM running batches of one task on request."""
+
+    def __init__(
+        self,
+        java: str,
+        classpath: str,
+        params: Path,
+        genomes: int,
+        trials: int,
+        seed: int,
+        log: Path,
+    ) -> None:
+        self.log = log
+        self.proc = subprocess.Popen(
+            [
+                java,
+                "-cp",
+                classpath,
+                "mase.mason.MaseBench",
+                "--params",
+                str(params),
+                "--genomes",
+                str(genomes),
+                "--trials",
+                str(trials),
+                "--seed",
+                str(seed),
+                "--warmup",
+                "1",
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=log.open("w"),
+            text=True,
+            bufsize=1,
+        )
+        self.evaluations = int(self._await("ready")["evaluations"])
+
+    def _await(self, tag: str) -> dict[str, str]:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            if line.startswith(tag + " "):
+                return dict(kv.split("=", 1) for kv in line.split()[1:])
+        raise SystemExit(
+            f"MaseBench ended before '{tag}' (exit {self.proc.wait()}); see {self.log}"
+        )
+
+    def batch(self) -> tuple[int, float, float]:
+        """(trial steps, CPU seconds, wall seconds) of one batch."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write("run\n")
+        self.proc.stdin.flush()
+        r = self._await("batch")
+        return int(r["trial_steps"]), int(r["cpu_ns"]) * 1e-9, int(r["wall_ns"]) * 1e-9
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            assert self.proc.stdin is not None
+            self.proc.stdin.write("quit\n")
+            self.proc.stdin.close()
+            self.proc.wait(timeout=30)
+
+
+@dataclass
+class Series:
+    """Rates of one task and configuration, one per alternation."""
+
+    cpu: list[float] = field(default_factory=list)
+    wall: list[float] = field(default_factory=list)
+
+
+def engine_batch(
+    task_name: str, genomes: int, trials: int, sdbc: bool, rng: np.random.Generator
+) -> tuple[int, float, float]:
+    """(robot-steps, CPU seconds, wall seconds) of one batch through our engine."""
+    task = make_task(task_name)
+    g, s = random_batch(task, genomes, trials, rng)
+    observers = [SdbcExtractor(check_values=False)] if sdbc else []
+    c0, w0 = time.process_time(), time.perf_counter()
+    r = run_batch(task, g, s, observers)
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    return int(r.length.sum()) * task.layout.n_bodies, cpu, wall
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mase", type=Path, required=True, help="MASE checkout")
+    parser.add_argument("--alternations", type=int, default=5)
+    parser.add_argument("--genomes", type=int, default=200)
+    parser.add_argument("--trials", type=int, default=10, help="trials per genome")
+    parser.add_argument("--task", action="append", choices=sorted(PARAMS))
+    parser.add_argument("--core", type=int, help="core to pin to (default: last)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--java", default="java")
+    parser.add_argument("--javac", default="javac")
+    parser.add_argument("--json", type=Path, help="also write every rate here")
+    args = parser.parse_args()
+    if args.alternations < 1:
+        parser.error("--alternations must be >= 1")
+    mase = args.mase.resolve()
+    check_checkout(mase)
+    for tool in (args.java, args.javac):
+        if shutil.which(tool) is None:
+            raise SystemExit(f"mase: {tool} not found (a JDK 17 or later is needed)")
+    classes = build(mase, args.javac)
+    core = pin_to_core(args.core)
+    print(f"pinned to core {core}", flush=True)
+    classpath = os.pathsep.join([str(classes), *map(str, classpath_jars(mase))])
+    names = args.task or list(PARAMS)
+    rng = np.random.default_rng(args.seed)
+    series = {(t, c): Series() for t in names for c in CONFIGS}
+    processes: dict[tuple[str, str], MaseProcess] = {}
+    try:
+        for t in names:
+            for sdbc in (False, True):
+                params = layered_params(mase, t, sdbc, classes.parent)
+                p = MaseProcess(
+                    args.java,
+                    classpath,
+                    params,
+                    args.genomes,
+                    args.trials,
+                    args.seed,
+                    params.with_suffix(".log"),
+                )
+                expected = 3 if sdbc else 2
+                if p.evaluations != expected:
+                    raise SystemExit(
+                        f"mase: {params} gave {p.evaluations} evaluation functions, "
+                        f"expected {expected}"
+                    )
+                processes[(t, "mase+sdbc" if sdbc else "mase")] = p
+        # Our engine warmed up too (imports, first allocations), untimed.
+        for t in names:
+            engine_batch(t, 10, 2, True, rng)
+        for k in range(args.alternations):
+            order = [(t, c) for t in names for c in CONFIGS]
+            if k % 2:
+                order.reverse()
+            for t, c in order:
+                n_bodies = make_task(t).layout.n_bodies
+                if c.startswith("mase"):
+                    steps, cpu, wall = processes[(t, c)].batch()
+                    robot_steps = steps * n_bodies
+                else:
+                    robot_steps, cpu, wall = engine_batch(
+                        t, args.genomes, args.trials, c == "sdbc+sdbc", rng
+                    )
+                series[(t, c)].cpu.append(robot_steps / cpu)
+                series[(t, c)].wall.append(robot_steps / wall)
+                print(
+                    f"alternation {k + 1} {t:<17} {c:<10} "
+                    f"{robot_steps / cpu:>12,.0f} robot-steps/CPU-s "
+                    f"{robot_steps / wall:>12,.0f} /wall-s",
+                    flush=True,
+                )
+    finally:
+        for p in processes.values():
+            p.close()
+    print(
+        f"\nmedians over {args.alternations} alternations, {args.genomes} genomes x "
+        f"{args.trials} trials per batch, core {core}:"
+    )
+    header = f"{'task':<17}{'':<6}" + "".join(f"{c:>12}" for c in CONFIGS)
+    header += f"{'sdbc/MASE':>11}{'+SDBC':>8}"
+    print(header)
+    for t in names:
+        for kind in ("cpu", "wall"):
+            rates = {c: getattr(series[(t, c)], kind) for c in CONFIGS}
+            bare = statistics.median(
+                a / b for a, b in zip(rates["sdbc"], rates["mase"], strict=True)
+            )
+            with_sdbc = statistics.median(
+                a / b
+                for a, b in zip(rates["sdbc+sdbc"], rates["mase+sdbc"], strict=True)
+            )
+            print(
+                f"{t:<17}{kind:<6}"
+                + "".join(f"{statistics.median(rates[c]):>12,.0f}" for c in CONFIGS)
+                + f"{bare:>11.2f}{with_sdbc:>8.2f}"
+            )
+    print(
+        "(robot-steps per CPU-second and per wall-second; sdbc/MASE: median of the "
+        "per-alternation ratios, bare and with the SDBC)"
+    )
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(
+            json.dumps(
+                {
+                    f"{t}/{c}": {"cpu": s.cpu, "wall": s.wall}
+                    for (t, c), s in series.items()
+                },
+                indent=1,
+            )
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,71 @@
+"""The speed benchmarks' own logic: the bit-identity check finds a one-bit change,
+the profile's parts add up to the run and leave the engine as it was, and physics
+overrides are parsed and refused as the command line needs."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parent.parent / "bench"
+# Appended, not prepended: bench/profile.py must not shadow the standard library's
+# profile module for the rest of the session, so it is loaded under its own name.
+sys.path.append(str(BENCH))
+_spec = importlib.util.spec_from_file_location("bench_profile", BENCH / "profile.py")
+assert _spec is not None and _spec.loader is not None
+engine_profile = importlib.util.module_from_spec(_spec)
+sys.modules["bench_profile"] = engine_profile  # dataclasses look their module up
+_spec.loader.exec_module(engine_profile)
+
+import common  # noqa: E402
+import identity  # noqa: E402
+from sdbc_sim.engine import BatchSimulation, EngineSettings  # noqa: E402
+from sdbc_sim.physics import TrialSpaces  # noqa: E402
+
+
+def test_identity_finds_a_one_bit_change(tmp_path: Path) -> None:
+    data = identity.run_task("predator_prey", 3, 2, 30, 1, EngineSettings())
+    assert set(data) == {
+        f"predator_prey/{layout}/{f}"
+        for layout in identity.LAYOUTS
+        for f in identity.FIELDS
+    }
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    np.savez(a, **data)
+    np.savez(b, **data)
+    assert identity.compare(a, b)
+    sdbc = data["predator_prey/space7/sdbc"]
+    sdbc[2, 1, 0] = np.nextafter(sdbc[2, 1, 0], np.inf)
+    np.savez(b, **data)
+    assert not identity.compare(a, b)
+    assert identity.differing_trials(np.load(a)["predator_prey/space7/sdbc"], sdbc) == 1
+
+
+def test_profile_parts_add_up_and_unwrap() -> None:
+    saved = (TrialSpaces.step, BatchSimulation.state, BatchSimulation.__init__)
+    p = engine_profile.profile_task(
+        "gate_escape", 2, 2, 20, 0, EngineSettings(), sdbc=True
+    )
+    assert sum(p.seconds.values()) == pytest.approx(p.total)
+    assert p.calls["chipmunk step"] == 20
+    assert p.calls["SDBC extractor"] == 20
+    assert p.robot_steps == 4 * 20 * 4
+    assert (TrialSpaces.step, BatchSimulation.state, BatchSimulation.__init__) == saved
+
+
+def test_physics_overrides() -> None:
+    assert common.physics_overrides(["hash_cell=32", "iterations=4"]) == {
+        "hash_cell": 32,
+        "iterations": 4,
+    }
+    assert common.physics_overrides(["hash_cell=none"]) == {"hash_cell": None}
+    with pytest.raises(ValueError, match="unknown setting 'bogus'"):
+        common.physics_overrides(["bogus=1"])
+    with pytest.raises(ValueError, match="NAME=VALUE"):
+        common.physics_overrides(["iterations"])
+    with pytest.raises(ValueError, match="power of two"):
+        common.engine_settings(["hash_cell=3"])
