@@ -14,7 +14,7 @@ from sdbc_evolution.run.config import (
 )
 from sdbc_evolution.run.results import read_generations
 
-CONFIGS = Path(__file__).resolve().parents[2] / "configs"
+CONFIGS = Path(__file__).resolve().parents[3] / "configs"
 
 TINY = """\
 task: gate_escape
