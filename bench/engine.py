@@ -143,12 +143,16 @@ def standalone_floor_rate(
     spaces = TrialSpaces.of_task(task, position, angle, settings)
     rows = np.empty((position.shape[0] * task.layout.n_bodies, READ_WIDTH))
     drive = np.zeros((rows.shape[0], WRITE_WIDTH))
+    col = spaces.drive_columns
+    # What the engine writes (see BatchSimulation._drive): the velocity itself, or
+    # the force that reaches it in one step (unit mass, dt 1 in every task).
+    force = settings.actuation == "force"
     t0 = time.perf_counter()
     for _ in range(steps):
         spaces.read(rows)
-        drive[:, 0] = rows[:, 2]
-        drive[:, 2] = speed * np.cos(rows[:, 2]) - rows[:, 3]
-        drive[:, 3] = speed * np.sin(rows[:, 2]) - rows[:, 4]
+        drive[:, col.angle] = rows[:, 2]
+        drive[:, col.x] = speed * np.cos(rows[:, 2]) - force * rows[:, 3]
+        drive[:, col.y] = speed * np.sin(rows[:, 2]) - force * rows[:, 4]
         spaces.step(drive)
     elapsed = time.perf_counter() - t0
     return steps * rows.shape[0] / elapsed

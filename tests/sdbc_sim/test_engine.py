@@ -267,7 +267,10 @@ def test_state_after_all_but_one_trial_ended(placed) -> None:
     out = np.zeros((2, 4, 3))
     out[..., 1] = 0.5
     out[..., 2] = 1.0
-    out[0, 0] = [1.0, 0.5, 0.0]  # trial 0 escapes at 12, ends at 87
+    # Trial 0's robot 0 moves 1 per step from x = 10 in the step it is commanded:
+    # x_k = 10 - k, so x_11 = -1 < 0 is its escape, and the gate closes 75 steps
+    # later, at 86, which ends the trial.
+    out[0, 0] = [1.0, 0.5, 0.0]
     while not sim.finished:
         sim.step(out[sim.live])
         state = sim.state()
@@ -276,4 +279,4 @@ def test_state_after_all_but_one_trial_ended(placed) -> None:
             assert sim.live.tolist() == [1] and state.active.tolist() == [False, True]
             np.testing.assert_array_equal(agents.centres[1], np.array(start))
             assert agents.present[1].all() and agents.radii[1].tolist() == [2.5] * 4
-    assert sim.length.tolist() == [87, 120]
+    assert sim.length.tolist() == [86, 120]

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from sdbc_sim.engine import BatchSimulation
+from sdbc_sim.engine import BatchSimulation, EngineSettings, TrialStepper
 from sdbc_sim.physics import PhysicsSettings, SlotGrid
 from sdbc_sim.sensors import point_segment_distance
 from sdbc_sim.tasks import make_task
@@ -86,3 +86,56 @@ def test_a_robot_driven_into_a_wall_slides_along_it(placed) -> None:
     # sliding right at cos 45 per step (friction 0).
     assert y == pytest.approx(197.5, abs=0.05 * 2.5)
     assert x > 100.0 + 50 * math.cos(math.pi / 4)
+
+
+def _track(actuation: str, placed, commands: list[float]) -> list[float]:
+    """x of a gate-escape robot facing +x in the open, after each step, driven
+    straight at ``commands[k - 1]`` x max speed (1) at step k; the other robots
+    stay parked far away."""
+    task = placed(
+        make_task("gate_escape"),
+        [[100.0, 100.0], [150.0, 20.0], [150.0, 60.0], [150.0, 180.0]],
+        [0.0, 0.0, 0.0, 0.0],
+    )
+    settings = EngineSettings(PhysicsSettings(actuation=actuation))
+    stepper = TrialStepper(task, settings)
+    stepper.reset(0)
+    xs = []
+    for speed in commands:
+        out = np.zeros((4, 3))
+        out[:, 1] = 0.5
+        out[:, 2] = 1.0
+        out[0] = [speed, 0.5, 0.0 if speed > 0.0 else 1.0]
+        stepper.step(out)
+        xs.append(float(stepper.state().groups[0].centres[0, 0, 0]))
+    return xs
+
+
+def test_velocity_actuation_moves_a_robot_in_the_step_it_is_commanded(
+    placed,
+) -> None:
+    """Stopped for steps 1-2, full speed (1 per step) at steps 3-5, stopped at 6-7.
+
+    Velocity actuation writes v* before chipmunk integrates positions, so the
+    robot is at 101 after step 3 and 103 after step 5, and the stop at step 6
+    leaves it at 103. Force actuation gives it v* only at the end of step 3, so it
+    first moves during step 4 (101 after step 4, 102 after step 5), and at the
+    stop of step 6 it still coasts 1 unit during that step, stopping at 103.
+    """
+    commands = [0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0]
+    velocity = _track("velocity", placed, commands)
+    force = _track("force", placed, commands)
+    np.testing.assert_allclose(
+        velocity, [100, 100, 101, 102, 103, 103, 103], rtol=0, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        force, [100, 100, 100, 101, 102, 103, 103], rtol=0, atol=1e-12
+    )
+    # Stop after full speed: moved 0 (velocity) and 1 (force) after the stop.
+    assert velocity[5] - velocity[4] == 0.0
+    assert force[5] - force[4] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_actuation_must_be_known() -> None:
+    with pytest.raises(ValueError, match="actuation must be one of velocity, force"):
+        PhysicsSettings(actuation="impulse")  # type: ignore[arg-type]

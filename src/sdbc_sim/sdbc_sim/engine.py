@@ -217,17 +217,21 @@ class BatchSimulation:
         self._compact_if_worthwhile()
 
     def _drive(self, speed: np.ndarray, turn: np.ndarray) -> np.ndarray:
-        """Drive rows (rows, 4): angle, angular velocity, force x, force y.
+        """Drive rows (rows, 4), laid out as ``spaces.drive_columns``: angle,
+        angular velocity, and velocity or force.
 
         A body turns at once, theta' = theta + turn (headings are kinematic:
-        frictionless circles feel no torque), and the force
-        F = m (v* - v) / dt, v* = speed (cos theta', sin theta'), gives it the
-        commanded velocity, which the contact solver then corrects. Chipmunk
-        integrates positions before velocities, so a body moves with that
-        velocity during the next physics step: one step of actuation delay.
+        frictionless circles feel no torque), and gets the commanded velocity
+        v* = speed (cos theta', sin theta'), which the contact solver then
+        corrects. With ``velocity`` actuation v* is written as the body's
+        velocity, and chipmunk, which integrates positions before velocities,
+        moves the body by v* dt in this step. With ``force`` actuation the force
+        F = m (v* - v) / dt is written instead; the body reaches v* at the end of
+        this step and moves with it during the next one (one step of delay).
         Bodies switched off and trials that have ended are brought to rest.
         """
         dt = self.settings.physics.dt
+        col = self.spaces.drive_columns
         moving = self.bodies.enabled & self._running[:, None]
         turn = turn * moving
         np.divide(turn, dt, out=self._turn_rate)
@@ -238,11 +242,15 @@ class BatchSimulation:
         v = (speed * moving).reshape(-1)
         rows = self._rows
         drive = np.empty((rows.shape[0], WRITE_WIDTH))
-        drive[:, 0] = heading.reshape(-1)
-        drive[:, 1] = 0.0
-        mass = self.spaces.masses / dt
-        drive[:, 2] = (v * self._cos.reshape(-1) - rows[:, 3]) * mass
-        drive[:, 3] = (v * self._sin.reshape(-1) - rows[:, 4]) * mass
+        drive[:, col.angle] = heading.reshape(-1)
+        drive[:, col.angular_velocity] = 0.0
+        if self.settings.physics.actuation == "velocity":
+            np.multiply(v, self._cos.reshape(-1), out=drive[:, col.x])
+            np.multiply(v, self._sin.reshape(-1), out=drive[:, col.y])
+        else:
+            mass = self.spaces.masses / dt
+            drive[:, col.x] = (v * self._cos.reshape(-1) - rows[:, 3]) * mass
+            drive[:, col.y] = (v * self._sin.reshape(-1) - rows[:, 4]) * mass
         return drive
 
     def _compact_if_worthwhile(self) -> None:

@@ -18,6 +18,13 @@ adjacent cells that one robot covers in one batch and not in another, changing
 the order in which it finds that robot's contacts; the determinism tests, with
 robots in constant contact, have not met it.)
 
+Actuation. Chipmunk's step integrates positions with the velocities the bodies
+hold, then finds contacts, then integrates forces into velocities and solves the
+contacts. With ``actuation="velocity"`` (the default) the commanded velocity is
+written before the step, so a body moves in the step it is commanded; with
+``"force"`` a force is written that reaches the commanded velocity at the end of
+the step, so the body moves one step later (see :class:`PhysicsSettings`).
+
 Contacts. Chipmunk moves bodies before it looks for contacts, so a body that meets
 a wall or another body during a step ends that step overlapping it by up to its
 speed times dt, which chipmunk would only push out during the next step. Here
@@ -39,6 +46,7 @@ import atexit
 import gc
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import pymunk
@@ -48,7 +56,14 @@ from sdbc_sim.sensors import norm, robot_sum, segment_offsets
 from sdbc_sim.task import Task
 
 _READ = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
-_WRITE = pb.BodyFields.ANGLE | pb.BodyFields.ANGULAR_VELOCITY | pb.BodyFields.FORCE
+_WRITE = {
+    "velocity": pb.BodyFields.ANGLE
+    | pb.BodyFields.VELOCITY
+    | pb.BodyFields.ANGULAR_VELOCITY,
+    "force": pb.BodyFields.ANGLE | pb.BodyFields.ANGULAR_VELOCITY | pb.BodyFields.FORCE,
+}
+"""Fields written before each step, per actuation mode (pymunk.batch keeps the
+fields in the order ANGLE, VELOCITY, ANGULAR_VELOCITY, FORCE: see DRIVE_COLUMNS)."""
 _IDS = pb.BodyFields.BODY_ID
 _CONTACT_IDS = (
     pb.ArbiterFields.BODY_A_ID
@@ -59,7 +74,34 @@ _CONTACT_DEPTH = pb.ArbiterFields.DISTANCE_1
 READ_WIDTH = 5
 """Columns of a state row: x, y, angle, vx, vy."""
 WRITE_WIDTH = 4
-"""Columns of a drive row: angle, angular velocity, force x, force y."""
+"""Columns of a drive row: angle, angular velocity and a vector (velocity or force)."""
+ACTUATIONS = ("velocity", "force")
+"""How the commanded motion reaches chipmunk (:class:`PhysicsSettings`)."""
+Actuation = Literal["velocity", "force"]
+
+
+@dataclass(frozen=True)
+class DriveColumns:
+    """Where a drive row holds each quantity (pymunk.batch's field order).
+
+    Attributes:
+        angle: Column of the heading.
+        angular_velocity: Column of the angular velocity.
+        x: Column of the x component of the velocity or force.
+        y: Column of its y component.
+    """
+
+    angle: int
+    angular_velocity: int
+    x: int
+    y: int
+
+
+DRIVE_COLUMNS = {
+    "velocity": DriveColumns(angle=0, angular_velocity=3, x=1, y=2),
+    "force": DriveColumns(angle=0, angular_velocity=1, x=2, y=3),
+}
+"""Drive row layout per actuation mode."""
 _WORLD_ORIGIN = 2.0**16
 """Every slot lies in [2^16, 2^17): one float exponent for all world coordinates."""
 _NO_CONTACT = pymunk.ShapeFilter(categories=0)
@@ -90,6 +132,16 @@ class PhysicsSettings:
         hash_cells_per_trial: Hash table cells per trial of a Space.
         separation_iterations: Most projection passes per step in a trial with
             an overlap (see :func:`project_apart`).
+        actuation: How a body gets its commanded velocity v*. ``velocity`` (the
+            default) writes v* as the body's velocity before the step; chipmunk
+            integrates positions first, so the body turns and moves in the step it
+            is commanded, as the authors' kinematic robots do (the paper is
+            silent), and a stop command stops it at once. Contacts still go
+            through chipmunk's solver, which removes the approaching part of v*,
+            and the overlap projection. ``force`` applies F = m (v* - v) / dt
+            instead: the velocity changes only at the end of the step, so a body
+            moves one step after its command (and coasts one step after a stop);
+            the behaviour of earlier versions.
     """
 
     trials_per_space: int = 500
@@ -100,8 +152,14 @@ class PhysicsSettings:
     hash_cell: float | None = None
     hash_cells_per_trial: int = 64
     separation_iterations: int = 8
+    actuation: Actuation = "velocity"
 
     def __post_init__(self) -> None:
+        if self.actuation not in ACTUATIONS:
+            raise ValueError(
+                f"physics: actuation must be one of {', '.join(ACTUATIONS)}, got "
+                f"{self.actuation!r}"
+            )
         if self.trials_per_space < 1:
             raise ValueError(
                 f"physics: trials_per_space must be >= 1, got {self.trials_per_space}"
@@ -487,17 +545,24 @@ class TrialSpaces:
         ):
             self._space_of[trial].bodies[trial][body].position = (x, y)
 
+    @property
+    def drive_columns(self) -> DriveColumns:
+        """The layout of the drive rows :meth:`step` takes."""
+        return DRIVE_COLUMNS[self.settings.actuation]
+
     def step(self, drive: np.ndarray) -> None:
-        """Sets (rows, 4) angle, angular velocity and force of every live body and
-        steps every Space once."""
+        """Sets (rows, 4) angle, angular velocity and velocity or force (as
+        :attr:`drive_columns` lays them out) of every live body and steps every
+        Space once."""
         dt = self.settings.dt
+        fields = _WRITE[self.settings.actuation]
         for sp, rows in self._ranges:
             n = rows.stop - rows.start
             if sp.perm is None:
                 sp.write[:n] = drive[rows]
             else:
                 sp.write[sp.perm] = drive[rows]
-            pb.set_space_bodies(sp.space, _WRITE, sp.write_buf)
+            pb.set_space_bodies(sp.space, fields, sp.write_buf)
             sp.space.step(dt)
 
     def disable(self, trials: np.ndarray, bodies: np.ndarray) -> None:

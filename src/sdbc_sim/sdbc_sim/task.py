@@ -10,10 +10,10 @@ number of docs/reference-setup.md as a default, one docstring line per field, ch
 (:func:`sdbc_sim.tasks.make_task`) finds it there. It never touches the engine.
 
 The engine owns the physics: every body of every trial is a pymunk circle driven
-through force and torque, walls are static segments, and trials never meet. The task
-owns everything else, as numpy over the live trials of a batch (B trials, R bodies
-each, batch-first arrays, trial-local coordinates; no Python loop per trial or per
-robot inside a step). It declares, as attributes set in ``__init__``:
+through its velocity and heading, walls are static segments, and trials never
+meet. The task owns everything else, as numpy over the live trials of a batch (B
+trials, R bodies each, batch-first arrays, trial-local coordinates; no Python loop
+per trial or per robot inside a step). It declares, as attributes set in ``__init__``:
 
 - ``description``: the :class:`~sdbc_sim.task_state.TaskDescription` (entity groups)
   that the SDBC extractor reads;
@@ -34,8 +34,9 @@ Then each step of a batch runs, in this order:
 2. the network (or an outside controller) turns them into outputs in [0, 1];
 3. ``actuate(trials, bodies, outputs)`` -> (speed, turn), each (B, R): every body
    turns by ``turn`` radians and moves ``speed`` units along its new heading; the
-   engine turns it at once and drives it there with F = m (v* - v) / dt (the
-   move happens during the next physics step);
+   engine turns it at once and gives it that velocity, so it moves during this
+   step's physics (with ``PhysicsSettings(actuation="force")``, through
+   F = m (v* - v) / dt, it moves one step later);
 4. the physics step, after which bodies left overlapping a wall or each other by
    more than ``overlap_tolerance`` are projected apart; ``bodies`` then holds the
    new state;

@@ -1,4 +1,8 @@
-"""Gate escape rules, sensors and results against hand-computed numbers."""
+"""Gate escape rules, sensors and results against hand-computed numbers.
+
+A body moves in the step it is commanded (velocity actuation): a robot that drives
+at speed 1 from x0 straight at the gate is at x_k = x0 - k after step k.
+"""
 
 from __future__ import annotations
 
@@ -46,23 +50,29 @@ def expected_characterisation(xs0: np.ndarray, others: np.ndarray, length: int):
 def test_robot_through_gate_escapes_and_gate_closes_75_steps_later(placed) -> None:
     task = placed(GateEscape(), [[10.0, 100.0], *PARKED], [math.pi, 0.0, 0.0, 0.0])
     stepper, states = drive(task, [1.0, 0.0, 0.0, 0.0])
-    # The move commanded at step k happens during step k + 1: x_k = 10 - (k - 1),
-    # so x_12 = -1 < 0 is the escape; the gate then closes at 12 + 75 = 87.
+    # The move commanded at step k happens during step k: x_k = 10 - k, so
+    # x_10 = 0 is still inside (escape is x < 0) and x_11 = -1 is the escape; the
+    # gate then closes at 11 + 75 = 86, which ends the trial.
     fitness, characterisation, length = stepper.result()
-    assert length == 87
-    assert fitness == pytest.approx((1 + 87 / 1000) / 5, abs=1e-15)
-    xs0 = np.concatenate([10.0 - np.arange(12), np.full(75, -1.0)])
-    gd, dispersion = expected_characterisation(xs0, np.array(PARKED), 87)
+    assert length == 86
+    assert fitness == pytest.approx((1 + 86 / 1000) / 5, abs=1e-15)
+    # Robot 0 is at 9, 8, ..., -1 after steps 1..11, then held where it left.
+    xs0 = np.concatenate([9.0 - np.arange(11), np.full(75, -1.0)])
+    gd, dispersion = expected_characterisation(xs0, np.array(PARKED), 86)
     np.testing.assert_allclose(
-        characterisation, [0.25, 12 / 1000, gd, dispersion], rtol=0, atol=1e-12
+        characterisation, [0.25, 11 / 1000, gd, dispersion], rtol=0, atol=1e-12
     )
     agent = [s.groups[0] for s in states]
     gate = [s.groups[1] for s in states]
-    assert [bool(a.present[0, 0]) for a in agent[10:12]] == [True, False]
-    assert [float(g.attributes[0, 0, 0]) for g in gate[10:12]] == [0.0, 1.0]
-    # Passing the gate: centre within one radius of the gate line.
-    assert [float(a.attributes[0, 0, 4]) for a in agent[6:11]] == [0, 0, 1, 1, 1]
-    assert agent[5].attributes[0, 0, 3] == pytest.approx(1.0, abs=1e-12)
+    # states[k - 1] is the state after step k: present after step 10, gone and
+    # the gate closing after step 11.
+    assert [bool(a.present[0, 0]) for a in agent[9:11]] == [True, False]
+    assert [float(g.attributes[0, 0, 0]) for g in gate[9:11]] == [0.0, 1.0]
+    # Passing the gate: centre within one radius (2.5) of the gate line; after
+    # steps 6..10 robot 0 is at x = 4, 3, 2, 1, 0.
+    assert [float(a.attributes[0, 0, 4]) for a in agent[5:10]] == [0, 0, 1, 1, 1]
+    # It moves at speed 1 from step 1 on.
+    assert agent[0].attributes[0, 0, 3] == pytest.approx(1.0, abs=1e-12)
     assert all(s.active[0] for s in states)
 
 
@@ -70,15 +80,18 @@ def test_trial_ends_when_no_robot_is_left_inside(placed) -> None:
     start = [[10.0, 100.0], [20.0, 100.0], [30.0, 100.0], [40.0, 100.0]]
     task = placed(GateEscape(), start, [math.pi] * 4)
     stepper, states = drive(task, [1.0] * 4)
-    # Robot i escapes at step x0 + 2: 12, 22, 32, 42; following robots pass
-    # through the escaped ones, which no longer collide.
+    # Robot i is at x0 - k after step k and escapes when x0 - k = -1 < 0, at step
+    # x0 + 1: 11, 21, 31, 41; following robots pass through the escaped ones,
+    # which no longer collide. The last escape ends the trial at 41; the gate
+    # opened at 11.
     fitness, characterisation, length = stepper.result()
-    assert length == 42
-    assert fitness == pytest.approx((4 + 42 / 1000) / 5, abs=1e-15)
+    assert length == 41
+    assert fitness == pytest.approx((4 + 41 / 1000) / 5, abs=1e-15)
     assert characterisation[0] == 1.0
-    assert characterisation[1] == pytest.approx(0.012, abs=1e-15)
+    assert characterisation[1] == pytest.approx(11 / 1000, abs=1e-15)
+    # states[k - 1]: 4 inside after step 10, 3 after 11; 3 after 20, 2 after 21.
     sizes = [int(s.groups[0].present[0].sum()) for s in states]
-    assert sizes[10:12] == [4, 3] and sizes[20:22] == [3, 2] and sizes[-1] == 0
+    assert sizes[9:11] == [4, 3] and sizes[19:21] == [3, 2] and sizes[-1] == 0
 
 
 def test_nobody_moves_until_max_steps(placed) -> None:
@@ -100,7 +113,8 @@ def test_mase_fitness_option(placed) -> None:
     )
     stepper, _ = drive(task, [1.0, 0.0, 0.0, 0.0])
     fitness, _, _ = stepper.result()
-    assert fitness == pytest.approx(0.8 * 1 / 4 + 0.2 * (1 - 12 / 1000), abs=1e-15)
+    # One of 4 escaped, the first (and only) escape at step 11 (x_11 = 10 - 11).
+    assert fitness == pytest.approx(0.8 * 1 / 4 + 0.2 * (1 - 11 / 1000), abs=1e-15)
 
 
 def test_gate_closing_steps_setting(placed) -> None:
@@ -110,7 +124,8 @@ def test_gate_closing_steps_setting(placed) -> None:
         [math.pi, 0.0, 0.0, 0.0],
     )
     stepper, _ = drive(task, [1.0, 0.0, 0.0, 0.0])
-    assert stepper.result()[2] == 22
+    # Escape at step 11 (x_11 = 10 - 11 < 0); closed 10 steps later.
+    assert stepper.result()[2] == 21
 
 
 def test_sensors_by_hand(placed) -> None:

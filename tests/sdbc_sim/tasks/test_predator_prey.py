@@ -4,10 +4,10 @@ The predators are driven by hand-written controllers: fixed outputs supplied to 
 engine at every step. GO drives a predator straight at full speed (o0 = 1, o1 = 0.5:
 no turn, 0.5 per step), STOP holds it still.
 
-The engine moves a body by the speed commanded at step k during step k + 1, so a
-predator that goes from the start is at y0 + 0.5 (k - 1) after step k; the prey,
-which decides from the positions before each step, likewise moves one step after it
-decides to flee.
+The engine moves a body by the speed commanded at step k during step k (velocity
+actuation), so a predator that goes from the start is at y0 + 0.5 k after step k;
+the prey decides from the positions before each step and moves in that same
+step.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ def dispersion(predators: list[np.ndarray]) -> float:
 def test_pincer_captures_at_centre_distance_4(placed) -> None:
     """Predators 0 and 2 close in on the prey from either side: their away-vectors
     cancel, so the prey stands still, and both reach centre distance
-    10 - 0.5 (k - 1) = 4 at step 13."""
+    10 - 0.5 k = 4 at step 12."""
     task = placed(
         PredatorPrey(),
         [[40.0, 50.0], [50.0, 0.0], [60.0, 50.0], [50.0, 50.0]],
@@ -67,20 +67,20 @@ def test_pincer_captures_at_centre_distance_4(placed) -> None:
     )
     stepper, states = drive(task, [GO, STOP, GO])
     fitness, characterisation, length = stepper.result()
-    assert length == 13
-    assert fitness == pytest.approx(2 - 13 / 600, abs=1e-15)
+    assert length == 12
+    assert fitness == pytest.approx(2 - 12 / 600, abs=1e-15)
     track = prey_track(states[:-1])
     np.testing.assert_array_equal(track[:, 3], 0.0)
-    np.testing.assert_allclose(track[:, :2], [[50.0, 50.0]] * 12, atol=1e-9)
+    np.testing.assert_allclose(track[:, :2], [[50.0, 50.0]] * 11, atol=1e-9)
     present = [bool(s.groups[1].present[0, 0]) for s in states]
-    assert present == [True] * 12 + [False]
+    assert present == [True] * 11 + [False]
     predators = [
-        np.array([[40 + 0.5 * (k - 1), 50], [50, 0], [60 - 0.5 * (k - 1), 50]])
-        for k in range(1, 14)
+        np.array([[40 + 0.5 * k, 50], [50, 0], [60 - 0.5 * k, 50]])
+        for k in range(1, 13)
     ]
     np.testing.assert_allclose(
         characterisation,
-        [1.0, 13 / 600, (4 + 50 + 4) / 3 / DIAGONAL, dispersion(predators)],
+        [1.0, 12 / 600, (4 + 50 + 4) / 3 / DIAGONAL, dispersion(predators)],
         atol=1e-12,
     )
 
@@ -96,17 +96,25 @@ def test_prey_flees_only_from_predators_within_5(placed) -> None:
     )
     stepper, states = drive(task, [STOP, GO, STOP])
     track = prey_track(states)
-    # Predator after step k: 40 + 0.5 (k - 1). Gaps before step k = 1..6: 10, 10,
-    # 9.5, 9, 8.5, 8 (edge 5: not below 5); 7 .. 11 flee (gaps 7.5, 7, 7.25, 7.5,
-    # 7.75); 12 and 13 stay (8, 8.25); 14 and 15 flee (7.75, 7.25).
-    fleeing = [0] * 6 + [1] * 5 + [0, 0, 1, 1]
+    # Predator after step k: 40 + 0.5 k; the prey moves 0.75 in a step where it
+    # flees. Centre gaps before step k (flee below 8, edge 5):
+    #   k = 1..5: 10, 9.5, 9, 8.5, 8       stays (prey at 50)
+    #   k = 6: 50 - 42.5 = 7.5             flees (prey 50.75, predator 43)
+    #   k = 7: 50.75 - 43 = 7.75           flees (51.5, 43.5)
+    #   k = 8: 51.5 - 43.5 = 8             stays (51.5, 44)
+    #   k = 9, 10: 7.5, 7.75               flee (52.25, 53; predator 45)
+    #   k = 11: 53 - 45 = 8                stays (53, 45.5)
+    #   k = 12, 13: 7.5, 7.75              flee (53.75, 54.5; predator 46.5)
+    #   k = 14: 54.5 - 46.5 = 8            stays (54.5, 47)
+    #   k = 15: 54.5 - 47 = 7.5            flees (55.25)
+    fleeing = [0] * 5 + [1, 1, 0, 1, 1, 0, 1, 1, 0, 1]
     np.testing.assert_array_equal(track[:, 3], 0.75 * np.array(fleeing))
-    y = [50.0] * 7 + [50.75, 51.5, 52.25, 53.0, 53.75, 53.75, 53.75, 54.5]
+    y = [50.0] * 5 + [50.75, 51.5, 51.5, 52.25, 53.0, 53.0, 53.75, 54.5, 54.5, 55.25]
     np.testing.assert_allclose(track[:, 1], y, atol=1e-9)
     np.testing.assert_allclose(track[:, 0], 50.0, atol=1e-9)
-    # The prey turns to +y once, at its first flight.
+    # The prey turns to +y once, at its first flight (step 6).
     turning = np.zeros(15)
-    turning[6] = UP
+    turning[5] = UP
     np.testing.assert_allclose(track[:, 2], turning, atol=1e-12)
     fitness, characterisation, length = stepper.result()
     assert length == 15 and fitness == 0.0
@@ -125,26 +133,37 @@ def test_prey_flees_along_weighted_sum_of_away_vectors(placed) -> None:
     track = prey_track(states)
     assert track[0, 2] == pytest.approx(math.atan2(0.25, 1 / 3), abs=1e-12)
     np.testing.assert_allclose(track[:, 3], [0.75, 0.75], atol=1e-12)
-    np.testing.assert_allclose(track[1, :2], [50.6, 50.45], atol=1e-9)
+    # It moves 0.75 (0.8, 0.6) in the step it decides.
+    np.testing.assert_allclose(track[0, :2], [50.6, 50.45], atol=1e-9)
+    # Step 2 decides from there: the still predators' weights are
+    # 1 / (centre x edge), edge = centre - 3.
+    prey = np.array([50.6, 50.45])
+    u = np.zeros(2)
+    for p in ([50.0, 43.0], [44.0, 50.0]):
+        away = prey - p
+        centre = float(np.linalg.norm(away))
+        u += away / (centre * (centre - 3.0))
+    step2 = prey + 0.75 * u / np.linalg.norm(u)
+    np.testing.assert_allclose(track[1, :2], step2, atol=1e-9)
 
 
 def test_prey_leaving_the_chase_zone_ends_the_trial(placed) -> None:
     """A still predator 4 below the prey's edge pushes it out through y = 100: it
-    flees from step 1 and moves from step 2, at y = 99.75 after step 2 and
-    100.5 > 100 after step 3."""
+    flees from step 1, at y = 99.75 after step 1 (edge gap 4.75 < 5, so it flees
+    again) and 100.5 > 100 after step 2."""
     start = [[10.0, 10.0], [50.0, 92.0], [90.0, 10.0], [50.0, 99.0]]
     task = placed(PredatorPrey(), start, [UP, UP, UP, 0.0])
     stepper, states = drive(task, [STOP, STOP, STOP])
     fitness, characterisation, length = stepper.result()
-    assert length == 3
-    np.testing.assert_allclose(prey_track(states)[:, 1], [99.0, 99.75, 100.5])
+    assert length == 2
+    np.testing.assert_allclose(prey_track(states)[:, 1], [99.75, 100.5])
     predators = np.array(start[:3])
     d_final = np.linalg.norm(predators - [50.0, 100.5], axis=1).mean()
     d_initial = np.linalg.norm(predators - [50.0, 99.0], axis=1).mean()
     assert d_final > d_initial and fitness == 0.0
     np.testing.assert_allclose(
         characterisation,
-        [0.0, 3 / 600, d_final / DIAGONAL, dispersion([predators] * 3)],
+        [0.0, 2 / 600, d_final / DIAGONAL, dispersion([predators] * 2)],
         atol=1e-12,
     )
     assert bool(states[-1].groups[1].present[0, 0])
@@ -152,7 +171,8 @@ def test_prey_leaving_the_chase_zone_ends_the_trial(placed) -> None:
 
 def test_closing_in_without_capture_scores_the_distance_gained(placed) -> None:
     """The three predators drive straight up from the start for 10 steps towards
-    a prey 50 away that never senses them: they end 4.5 higher."""
+    a prey 50 away that never senses them: they move 0.5 in each of the 10
+    steps and end 5 higher."""
     task = placed(
         make_task("predator_prey", max_steps=10),
         [[45.0, 0.0], [50.0, 0.0], [55.0, 0.0], [50.0, 50.0]],
@@ -162,7 +182,7 @@ def test_closing_in_without_capture_scores_the_distance_gained(placed) -> None:
     fitness, characterisation, length = stepper.result()
     assert length == 10
     d_initial = (2 * math.hypot(5, 50) + 50) / 3
-    d_final = (2 * math.hypot(5, 45.5) + 45.5) / 3
+    d_final = (2 * math.hypot(5, 45) + 45) / 3
     assert fitness == pytest.approx((d_initial - d_final) / DIAGONAL, abs=1e-12)
     np.testing.assert_allclose(
         characterisation,

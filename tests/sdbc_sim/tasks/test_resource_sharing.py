@@ -4,9 +4,10 @@ The robots are driven by hand-written controllers: fixed outputs supplied to the
 engine at every step. STOP holds a robot still (o2 = 1 > 0.5), GO drives it
 straight at full speed (o0 = 1, o1 = 0.5: no turn).
 
-The engine moves a body by the speed commanded at step k during step k + 1 (its
-measured speed is the commanded one from step k on), so a robot commanded to stop at
-step k has speed 0 at step k and is where it stops at step k + 1.
+The engine moves a body by the speed commanded at step k during step k (velocity
+actuation; its measured speed after step k is the commanded one), so a robot
+commanded to stop at step k has speed 0 at step k and stays where it was after
+step k - 1.
 """
 
 from __future__ import annotations
@@ -97,7 +98,8 @@ def test_parked_robot_charges_after_five_stationary_steps(placed) -> None:
 
 def test_station_takes_one_robot_at_a_time(placed) -> None:
     """Robot 0 charges on the station while robot 1 waits next to it; robot 0
-    drives off at step 20, robot 1 drives on from step 22 and stops there at 32."""
+    drives off at step 20, robot 1 drives on during steps 22..31 and stops there
+    at 32."""
 
     def policy(k: int) -> list[tuple[float, float, float]]:
         return [STOP if k < 20 else GO, GO if 22 <= k <= 31 else STOP, STOP]
@@ -108,17 +110,21 @@ def test_station_takes_one_robot_at_a_time(placed) -> None:
     stepper, states, energy, charging = drive(task, policy)
     flags = np.array(charging)
     steps = np.arange(1, len(flags) + 1)
-    # Robot 0 charges from step 6 until it moves at step 20; robot 1, 10 from
-    # the station centre (2 from robot 0's edge), cannot dock until robot 0 has
-    # left. Robot 1 moves during steps 23..32 from y = 85 to y = 75, is docked
-    # from step 32 (speed 0) and charges from step 37.
+    # Robot 0 is docked from step 1 (centre on the station, speed 0), so it
+    # charges from step 6 (5 docked steps before) until it moves, at step 20
+    # (speed 1 then: not docked); robot 1, 10 from the station centre (2 from
+    # robot 0's edge), cannot dock until robot 0 has left. Robot 1 moves 1 in
+    # each of steps 22..31, from y = 85 to y = 75; at step 31 it is there but
+    # moving, so it is docked from step 32 (speed 0), and charges from step 37.
     assert np.array_equal(steps[flags[:, 0]], np.arange(6, 20))
     assert np.array_equal(steps[flags[:, 1]], np.arange(37, 501))
     assert not flags[:, 2].any()
     assert flags.sum(axis=1).max() == 1
+    # states[k - 1] is after step k: y = 85 after step 21, 84 after 22, 76 after
+    # 30, 75 after 31 and 32.
     y1 = np.array([s.groups[0].centres[0, 1, 1] for s in states])
     np.testing.assert_allclose(
-        y1[[21, 22, 30, 31]], [85.0, 84.0, 76.0, 75.0], atol=1e-9
+        y1[[20, 21, 29, 30, 31]], [85.0, 84.0, 76.0, 75.0, 75.0], atol=1e-9
     )
     # Robot 1's energy: 21 stopped steps, 10 at full speed (drain 2), 5 docked,
     # then charging: 500 - 21 x 1.05 - 10 x 2 - 5 x 1.05 = 452.7 at step 36,
@@ -180,8 +186,8 @@ def test_drain_grows_with_the_speed_command(placed, outputs, drain) -> None:
 
 
 def test_characterisation_interval_samples_every_nth_step(placed) -> None:
-    """Robot 0 drives off the station at step 1 (speed 1 from step 1, moving from
-    step 2): sampled at steps 10 and 20 only, it is 9 and 19 from the station."""
+    """Robot 0 drives off the station from step 1 (moving 1 per step from step 1):
+    sampled at steps 10 and 20 only, it is 10 and 20 from the station."""
     task = placed(
         make_task("resource_sharing", max_steps=20, characterisation_interval=10),
         [CENTRE, NORTH, WEST],
@@ -192,7 +198,7 @@ def test_characterisation_interval_samples_every_nth_step(placed) -> None:
     energy = (500 - 2 * 10) + 2 * (500 - 1.05 * 10) + (500 - 2 * 20) + 2 * (500 - 21)
     np.testing.assert_allclose(
         characterisation,
-        [1.0, energy / 6 / 500, 2 / 6, (9 + 19 + 4 * 50) / 6 / 75],
+        [1.0, energy / 6 / 500, 2 / 6, (10 + 20 + 4 * 50) / 6 / 75],
         rtol=1e-12,
     )
 
@@ -255,9 +261,12 @@ def test_task_state_groups(placed) -> None:
     stepper.reset(0)
     stepper.step(np.array([STOP, (1.0, 1.0, 0.0), STOP]))
     agent, station = stepper.state().groups
-    # Robot 1 turned by 0.78 rad and drives at 1: its measured speeds.
+    # Robot 1 turned by 0.78 rad, to heading 1.78, and moved 1 along it in the
+    # same step: its position and measured speeds.
     np.testing.assert_allclose(
-        agent.attributes[0, 1], [75, 125, 0.78, 1.0, 500 - 2.0, 0.0], atol=1e-12
+        agent.attributes[0, 1],
+        [75 + math.cos(1.78), 125 + math.sin(1.78), 0.78, 1.0, 500 - 2.0, 0.0],
+        atol=1e-12,
     )
     np.testing.assert_allclose(
         agent.attributes[0, 0], [75, 75, 0.0, 0.0, 500 - 1.05, 0.0], atol=1e-12
@@ -328,6 +337,9 @@ def test_description_gives_the_papers_21_dimensions() -> None:
         ({"start_separation": 6.0}, "start_separation"),
         ({"characterisation_interval": 0}, "characterisation_interval"),
         ({"stationary_speed": float("nan")}, "stationary_speed"),
+        ({"charging_input": "charging"}, "charging_input must be one of in_station"),
+        ({"energy_mean_over": "steps"}, "energy_mean_over must be one of trial"),
+        ({"stop_freezes_heading": 1}, "stop_freezes_heading must be true or false"),
     ],
 )
 def test_bad_settings_are_named(overrides: dict, message: str) -> None:
@@ -393,3 +405,76 @@ def test_robots_crowding_the_station_never_sink_into_each_other() -> None:
     assert touching > 10_000
     assert worst <= 2 * 0.05 * r  # each of the two robots sinks at most 5%
     assert np.all(np.count_nonzero(sim.trials.energy == 0.0, axis=1) == 4)
+
+
+def wait_then_burn(task: ResourceSharing, waits: list[int], seeds: int) -> np.ndarray:
+    """Fitness (len(waits), seeds) of teams whose robots all stand still for w
+    steps, then drive straight at full speed until they die (never charging)."""
+    w = np.repeat(np.array(waits), seeds)
+    sim = BatchSimulation(task, np.tile(np.arange(seeds), len(waits)))
+    while not sim.finished:
+        go = (sim.step_count + 1 > w[sim.live])[:, None]
+        out = np.zeros((sim.live.shape[0], 3, 3))
+        out[..., 0] = np.where(go, 1.0, 0.0)
+        out[..., 1] = 0.5
+        out[..., 2] = np.where(go, 0.0, 1.0)
+        sim.step(out)
+    assert np.all(sim.length.reshape(len(waits), seeds)[0] == 345)
+    return sim.fitness.reshape(len(waits), seeds)
+
+
+def test_wait_then_burn_is_the_deceptive_optimum() -> None:
+    """The module docstring's optimum, driven through the engine from 4 starts.
+
+    Standing still for 200 steps leaves 500 - 1.05 x 200 = 290; full speed then
+    drains 2 per step, so every robot dies at step 200 + 145 = 345, which ends the
+    trial. Each robot's energy sums to sum_{k=1}^{200} (500 - 1.05 k)
+    + sum_{j=1}^{145} (290 - 2 j) = 78895 + 20880 = 99775: e_bar = 99775 / 345
+    and F = (0 + e_bar / 500) / 4 = 0.144601. Waiting one step less or more
+    scores less; with energy_mean_over = max_steps the same team scores
+    99775 / 500 / 2000 = 0.099775.
+    """
+    fitness = wait_then_burn(ResourceSharing(), [200, 199, 201], 4)
+    np.testing.assert_allclose(fitness[0], 99775 / 345 / 2000, rtol=1e-12)
+    assert fitness[0, 0] == pytest.approx(0.144601, abs=5e-7)
+    assert np.all(fitness[1:] < fitness[0])
+    over_max_steps = make_task("resource_sharing", energy_mean_over="max_steps")
+    fitness = wait_then_burn(over_max_steps, [200], 4)
+    np.testing.assert_allclose(fitness[0], 99775 / 500 / 2000, rtol=1e-12)
+
+
+def test_stop_freezes_the_heading_unless_told_otherwise(placed) -> None:
+    """A stop output with a full left turn: the heading stays by default, and
+    turns by max_turn (0.78) with stop_freezes_heading false."""
+    for freezes, turned in ((True, 0.0), (False, 0.78)):
+        task = placed(
+            make_task("resource_sharing", stop_freezes_heading=freezes),
+            [NORTH, WEST, [125.0, 75.0]],
+            [0.0, 0.0, 0.0],
+        )
+        stepper = TrialStepper(task)
+        stepper.reset(0)
+        stepper.step(np.array([(0.0, 1.0, 1.0)] * 3))
+        np.testing.assert_allclose(stepper.sim.bodies.angle[0], [turned] * 3)
+        np.testing.assert_allclose(stepper.sim.bodies.position[0, 0], NORTH)
+
+
+def test_charging_input_senses_the_station_or_the_charge(placed) -> None:
+    """Robot 0 drives across the station centre at speed 1: by default its last
+    input is 1 while its centre is within 1 of the station centre, moving or not;
+    with charging_input = charged it stays -1 (it never charges)."""
+    for cue, expected in (("in_station", [-1, 1, 1, -1]), ("charged", [-1] * 4)):
+        task = placed(
+            make_task("resource_sharing", charging_input=cue),
+            [[73.5, 75.0], NORTH, WEST],
+            [0.0, 0.0, 0.0],
+        )
+        stepper = TrialStepper(task)
+        stepper.reset(0)
+        seen = []
+        for _ in range(4):
+            # Before steps 1..4 robot 0 is at x = 73.5, 74.5, 75.5, 76.5:
+            # 1.5, 0.5, 0.5, 1.5 from the station centre.
+            seen.append(stepper.sensors()[0, 7])
+            stepper.step(np.array([GO, STOP, STOP]))
+        assert seen == expected

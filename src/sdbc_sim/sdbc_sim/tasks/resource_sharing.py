@@ -29,6 +29,23 @@ Fitness (paper, eq. F_s):
 s the survivors at the end, e_bar the mean energy of the N robots over the steps of
 the trial (a dead robot counts 0), N the team size.
 
+The deceptive optimum. e_bar averages over the trial's actual length (as the
+paper and the authors' code do), so a team that never charges scores more by
+dying sooner once its energy is low. Scanning every team whose robots stand still
+for w steps and then drive at speed s until they die (w = 0..476, s = 0, 0.1, ...,
+1, all 5247 through the engine), the best is w = 200, energy 500 - 200 x 1.05 =
+290, then full speed (drain 2): all dead at step 200 + 290 / 2 = 345. Each
+robot's energy sums to sum_{k=1}^{200} (500 - 1.05 k) + sum_{j=1}^{145}
+(290 - 2 j) = 78895 + 20880 = 99775, so e_bar = 99775 / 345 = 289.20 and
+F = 289.20 / 500 / 4 = 0.144601 (w = 199 gives 0.144402, w = 201 0.144383).
+Standing still until death (step 477) gives 118797.7 / 477 / 2000 = 0.1245. With
+``energy_mean_over="max_steps"`` the w = 200 team scores 99775 / 500 / 2000 =
+0.0998, below standing still (0.1188): waiting to burn no longer pays.
+The harmonic mean over trials makes escaping the plateau fragile: an evolved
+charger scored about 0.372 in a trial where a robot charged and 0.122 where none
+did (measured in an earlier study), so a controller that charges in 1 of 5 trials
+scores 5 / (1 / 0.372 + 4 / 0.122) = 0.141, below the plateau's 0.1446.
+
 Task-specific characterisation (Gomes et al. 2013), each in [0, 1]: survivors s / N;
 mean energy / e_max; mean speed / max_speed (capped at 1: a robot can be pushed
 faster than it drives); mean centre distance to the station / (arena_size / 2),
@@ -45,10 +62,14 @@ Sensors (inputs, in this order; readings as in the authors' code):
      (the arena has no walls; a robot far out still reads how far it is);
   5. station bearing / pi;
   6. own energy: 2 e / e_max - 1;
-  7. charging flag: 1 if the robot charged at the last step, -1 otherwise.
+  7. station flag: 1 if the robot's centre is within ``docking_distance`` (1) of
+     the station centre, whatever its speed (``charging_input="in_station"``, the
+     authors' cue), or if it charged at the last step (``"charged"``); -1
+     otherwise.
 
 Outputs: speed o0 x ``max_speed``, 0 if o2 > ``stop_threshold``; turn
-(2 o1 - 1) x ``max_turn`` radians, applied before the move.
+(2 o1 - 1) x ``max_turn`` radians, applied before the move, 0 too when the robot
+is told to stop (``stop_freezes_heading``, the authors' code).
 
 Choices where the paper is silent (from the authors' code, MASE fd13449, where it says):
 - No walls: the arena is open, as in the authors' code; robots may wander off.
@@ -63,9 +84,11 @@ Choices where the paper is silent (from the authors' code, MASE fd13449, where i
   pushing against another pays for the speed it asks for.
 - Drain before charging, so a robot can die on the station at its last unit of
   energy; a charging robot at full energy reads e_max.
-- The charging input and the "is charging" attribute are "charged at this step"
-  (the paper: "whether it is currently charging"); the authors' code fed the
-  robots "centre on the station" instead.
+- The charging input is the authors' "centre on the station" by default
+  (``charging_input``); the "is charging" attribute of the task state is "charged
+  at this step" (the paper: "whether it is currently charging").
+- A stop command freezes the heading (``stop_freezes_heading``), as in the
+  authors' code; in gate escape their robots do turn while stopped.
 - The station's "is occupied" is "some robot charged at this step" (the paper:
   "whether it is currently charging a robot or not").
 - A trial ends when every robot is dead, or after ``max_steps``.
@@ -78,6 +101,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -127,6 +151,18 @@ class ResourceSharingConfig:
         max_steps: tau, the longest trial.
         characterisation_interval: The task-specific characterisation samples
             every this many steps (the authors' code: 10).
+        stop_freezes_heading: A robot told to stop (o2 above ``stop_threshold``)
+            does not turn either, as in the authors' code (the paper is silent).
+        charging_input: What the last input senses: ``in_station``, the robot's
+            centre within ``docking_distance`` (1) of the station centre whatever
+            its speed, as the authors' ``distance < resourceRadius - agentRadius``;
+            or ``charged``, the robot charged at the last step (the paper's
+            "whether it is currently charging").
+        energy_mean_over: The steps e_bar averages over: ``trial``, the steps
+            the trial lasted (the paper's and the authors' reading); or
+            ``max_steps``, tau whatever the trial's length (the robots count 0 once
+            all are dead), which removes the wait-then-burn optimum described in
+            the module docstring.
     """
 
     arena_size: float = 150.0
@@ -150,8 +186,26 @@ class ResourceSharingConfig:
     stop_threshold: float = 0.5
     max_steps: int = 500
     characterisation_interval: int = 1
+    stop_freezes_heading: bool = True
+    charging_input: Literal["in_station", "charged"] = "in_station"
+    energy_mean_over: Literal["trial", "max_steps"] = "trial"
 
     def __post_init__(self) -> None:
+        choices = {
+            "charging_input": ("in_station", "charged"),
+            "energy_mean_over": ("trial", "max_steps"),
+        }
+        for name, allowed in choices.items():
+            if getattr(self, name) not in allowed:
+                raise ValueError(
+                    f"resource_sharing: {name} must be one of {', '.join(allowed)}, "
+                    f"got {getattr(self, name)!r}"
+                )
+        if not isinstance(self.stop_freezes_heading, bool):
+            raise ValueError(
+                "resource_sharing: stop_freezes_heading must be true or false, got "
+                f"{self.stop_freezes_heading!r}"
+            )
         for name in (
             "arena_size",
             "robot_radius",
@@ -390,10 +444,15 @@ class ResourceSharing(Task):
         out[..., :k] = arcs.reshape(b, n, k)
         sx = self.station_centre[0] - pos[..., 0]
         sy = self.station_centre[1] - pos[..., 1]
-        out[..., k] = norm(sx, sy) * (2.0 / c.station_sensor_range) - 1.0
+        station = norm(sx, sy)
+        out[..., k] = station * (2.0 / c.station_sensor_range) - 1.0
         out[..., k + 1] = bearing(sx, sy, cos_h, sin_h) * (1.0 / np.pi)
         out[..., k + 2] = trials.energy * (2.0 / c.max_energy) - 1.0
-        out[..., k + 3] = np.where(trials.charging, 1.0, -1.0)
+        if c.charging_input == "in_station":
+            cue = station < c.docking_distance
+        else:
+            cue = trials.charging
+        out[..., k + 3] = np.where(cue, 1.0, -1.0)
         return out
 
     def actuate(
@@ -404,7 +463,8 @@ class ResourceSharing(Task):
         go = alive & (outputs[..., 2] <= c.stop_threshold)
         command = np.where(go, outputs[..., 0], 0.0)
         trials.command = command
-        turn = np.where(alive, (2.0 * outputs[..., 1] - 1.0) * c.max_turn, 0.0)
+        turning = go if c.stop_freezes_heading else alive
+        turn = np.where(turning, (2.0 * outputs[..., 1] - 1.0) * c.max_turn, 0.0)
         return command * c.max_speed, turn
 
     def update(
@@ -472,7 +532,8 @@ class ResourceSharing(Task):
         c = self.config
         n = c.n_robots
         survivors = np.count_nonzero(trials.energy > 0.0, axis=1).astype(np.float64)
-        mean_energy = trials.energy_sum / (n * length)
+        steps = length if c.energy_mean_over == "trial" else c.max_steps
+        mean_energy = trials.energy_sum / (n * steps)
         fitness = (survivors + mean_energy / c.max_energy) / (1.0 + n)
         samples = np.maximum(trials.samples, 1)
         characterisation = np.stack(
