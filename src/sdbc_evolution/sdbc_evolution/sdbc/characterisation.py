@@ -42,7 +42,8 @@ class SdbcExtractor:
     :meth:`start` once per batch and :meth:`observe` after every step; then
     :meth:`characterisations` gives the (B, D) raw vectors. It keeps O(B F) numbers,
     never the trajectory, and can be reused for the next batch. The shapes of static
-    groups are read at a batch's first step only: static entities never move.
+    groups are read at a batch's first step only (static entities never move), unless
+    ``fixed_static_geometry`` is off.
 
     The engine keeps stepping a batch until its last trial ends; once few trials
     are left, only those are computed (gathered into a smaller batch), so the cost
@@ -56,15 +57,26 @@ class SdbcExtractor:
             fraction of the batch (0 never, 1 always). Gathering them costs about
             what it saves at a quarter of the batch (measured at 2000 trials on the
             three tasks); at 5% it halves a step's cost.
+        fixed_static_geometry: Read static groups' shapes at the first step only
+            and reuse them slot by slot. True for the engine, whose slots keep their
+            entity; off for task states whose slots do not (a message packs the
+            entities present into its first slots, so a static group whose
+            membership changes moves its entities between slots).
     """
 
-    def __init__(self, check_values: bool = True, compact_below: float = 0.25) -> None:
+    def __init__(
+        self,
+        check_values: bool = True,
+        compact_below: float = 0.25,
+        fixed_static_geometry: bool = True,
+    ) -> None:
         if not 0.0 <= compact_below <= 1.0:
             raise ValueError(
                 f"SDBC extractor: compact_below {compact_below} must be in [0, 1]"
             )
         self.check_values = check_values
         self.compact_below = compact_below
+        self.fixed_static_geometry = fixed_static_geometry
         self._features: StepFeatures | None = None
         self._aggregator: TrialAggregator | None = None
         self._step = 0
@@ -74,10 +86,30 @@ class SdbcExtractor:
         """Prepares for a batch of ``n_trials`` trials of the described task."""
         if n_trials < 1:
             raise ValueError(f"SDBC extractor: n_trials {n_trials} < 1")
-        self._features = StepFeatures(description, fixed_static_geometry=True)
+        self._features = StepFeatures(
+            description, fixed_static_geometry=self.fixed_static_geometry
+        )
         self._aggregator = TrialAggregator(n_trials, self._features.n_features)
         self._step = 0
         self._previous_active = np.ones(n_trials, dtype=bool)
+
+    def redescribe(self, description: TaskDescription) -> None:
+        """Continues the batch under ``description``, which must have the same
+        features as the current one (it may differ in a group's geometry, learnt
+        when the group's first entity appears); the sums so far are kept.
+
+        Raises:
+            ValueError: If the features differ.
+        """
+        features = self._started()
+        if behaviour_features(description) != features.features:
+            raise ValueError(
+                f"SDBC extractor, task {description.name!r}: a new description must "
+                "keep the features of the old one"
+            )
+        self._features = StepFeatures(
+            description, fixed_static_geometry=self.fixed_static_geometry
+        )
 
     @property
     def description(self) -> TaskDescription:
