@@ -122,8 +122,12 @@ class BatchSimulation:
         self.spaces.read(self._rows)
         self._cos = np.cos(self._rows[:, 2]).reshape(n, self._n_bodies)
         self._sin = np.sin(self._rows[:, 2]).reshape(n, self._n_bodies)
-        self.bodies = self._body_views(np.ones((n, self._n_bodies), dtype=bool))
+        self.bodies = self._body_views(
+            np.ones((n, self._n_bodies), dtype=bool),
+            np.zeros((n, self._n_bodies), dtype=bool),
+        )
         self._enabled = self.bodies.enabled.copy()
+        self._anchored = self.bodies.anchored.copy()
         self._running = np.ones(n, dtype=bool)
         self._took_step = np.zeros(n, dtype=bool)
         self.step_count = 0
@@ -144,7 +148,7 @@ class BatchSimulation:
         """True once every trial has ended."""
         return bool(self.done.all())
 
-    def _body_views(self, enabled: np.ndarray) -> BodyState:
+    def _body_views(self, enabled: np.ndarray, anchored: np.ndarray) -> BodyState:
         b, r = enabled.shape
         rows = self._rows
         return BodyState(
@@ -155,6 +159,7 @@ class BatchSimulation:
             cos_angle=self._cos,
             sin_angle=self._sin,
             enabled=enabled,
+            anchored=anchored,
         )
 
     def sensors(self) -> np.ndarray:
@@ -190,7 +195,7 @@ class BatchSimulation:
         speed, turn = task.actuate(self.trials, self.bodies, outputs)
         self.spaces.step(self._drive(speed, turn))
         self.spaces.read(self._rows)
-        self.spaces.separate(self._rows, self.bodies.enabled)
+        self.spaces.separate(self._rows, self.bodies.enabled, self._anchored)
         self.step_count += 1
         k = self.step_count
         ends = task.update(self.trials, self.bodies, k)
@@ -201,6 +206,11 @@ class BatchSimulation:
             self.spaces.disable(*np.nonzero(switched_off))
             self.bodies.velocity[switched_off] = 0.0
             self._enabled &= self.bodies.enabled
+        changed = self._anchored != self.bodies.anchored
+        if changed.any():
+            trials, bodies = np.nonzero(changed)
+            self.spaces.anchor(trials, bodies, self.bodies.anchored[changed])
+            np.copyto(self._anchored, self.bodies.anchored)
         np.copyto(self._took_step, self._running)
         ends &= self._running
         if ends.any():
@@ -269,8 +279,11 @@ class BatchSimulation:
         self._turn_rate = self._turn_rate[rows]
         self._cos = self._cos[rows]
         self._sin = self._sin[rows]
-        self.bodies = self._body_views(self.bodies.enabled[rows])
+        self.bodies = self._body_views(
+            self.bodies.enabled[rows], self.bodies.anchored[rows]
+        )
         self._enabled = self._enabled[rows]
+        self._anchored = self._anchored[rows]
         self._running = self._running[rows]
         self._took_step = self._took_step[rows]
         if self._networks is not None:

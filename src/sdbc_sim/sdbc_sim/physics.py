@@ -105,6 +105,9 @@ DRIVE_COLUMNS = {
 _WORLD_ORIGIN = 2.0**16
 """Every slot lies in [2^16, 2^17): one float exponent for all world coordinates."""
 _NO_CONTACT = pymunk.ShapeFilter(categories=0)
+ANCHOR_MASS_FACTOR = 1e6
+"""An anchored body's mass (and moment) over its own: a body of the ordinary mass
+that runs into it at full speed moves it by about a millionth of that speed."""
 
 # Spaces left in reference cycles would otherwise be freed during interpreter
 # shutdown, after pymunk's callbacks are gone (it then prints a warning per call).
@@ -258,13 +261,15 @@ def project_apart(
     walls: np.ndarray,
     tolerance: float,
     iterations: int,
+    anchored: np.ndarray | None = None,
 ) -> np.ndarray:
     """Moves overlapping bodies apart until no overlap exceeds ``tolerance``.
 
     Jacobi passes: in each, two bodies i, j overlapping by o = r_i + r_j - d_ij >
-    tolerance move apart along their centre line by (o - tolerance / 2) / 2 each,
-    and a body overlapping a wall by o = r_i - dist > tolerance moves out along
-    the wall's normal by o - tolerance / 2; the moves of a pass are summed in index
+    tolerance move apart along their centre line by (o - tolerance / 2) / 2 each
+    (by all of it the one that is not anchored, if the other is), and a body
+    overlapping a wall by o = r_i - dist > tolerance moves out along the wall's
+    normal by o - tolerance / 2; the moves of a pass are summed in index
     order (so a trial's result never depends on its batch-mates) and applied
     together. Passes stop when nothing overlaps or after ``iterations``.
 
@@ -275,6 +280,7 @@ def project_apart(
         walls: (P, 2, 2) wall segments.
         tolerance: Largest overlap left in place; half of it stays after a move.
         iterations: Most passes.
+        anchored: (S, R) bool, anchored bodies, or None for none.
 
     Returns:
         (S, R, 2) new centres.
@@ -284,6 +290,12 @@ def project_apart(
     n = radii.shape[0]
     reach = radii[:, None] + radii[None, :]
     pair = ~np.eye(n, dtype=bool) & enabled[:, :, None] & enabled[:, None, :]
+    # Share of a pair's overlap that body i takes: 1/2, or 0 (i anchored, j not),
+    # or 1 (j anchored, i not).
+    share: np.ndarray | float = 0.5
+    if anchored is not None:
+        a = anchored.astype(np.float64)
+        share = 0.5 + 0.5 * (a[:, None, :] - a[:, :, None])
     for _ in range(iterations):
         x, y = pos[..., 0], pos[..., 1]
         dx = x[:, None, :] - x[:, :, None]
@@ -291,7 +303,7 @@ def project_apart(
         d = norm(dx, dy)
         over = reach - d
         hit = pair & (over > tolerance) & (d > 0.0)
-        k = np.where(hit, (over - target) * 0.5 / np.where(d > 0.0, d, 1.0), 0.0)
+        k = np.where(hit, (over - target) * share / np.where(d > 0.0, d, 1.0), 0.0)
         shift_x = -robot_sum(k * dx, axis=2)
         shift_y = -robot_sum(k * dy, axis=2)
         moving = hit.any()
@@ -457,6 +469,7 @@ class TrialSpaces:
         self._radii = np.asarray(radii, dtype=np.float64)
         self._walls = walls
         self._offsets = np.repeat(offsets, n_bodies, axis=0)
+        self._mass = mass
         self._masses = np.full(n_trials * n_bodies, mass)
         self._index_spaces()
 
@@ -507,7 +520,9 @@ class TrialSpaces:
             out[rows] = data if sp.perm is None else data[sp.perm]
         out[:, 0:2] -= self._offsets
 
-    def separate(self, out: np.ndarray, enabled: np.ndarray) -> None:
+    def separate(
+        self, out: np.ndarray, enabled: np.ndarray, anchored: np.ndarray | None = None
+    ) -> None:
         """Projects apart the bodies of every trial where chipmunk found a contact
         overlapping by more than the tolerance, in ``out`` (as filled by
         :meth:`read`) and in pymunk; see :func:`project_apart`.
@@ -515,6 +530,7 @@ class TrialSpaces:
         Args:
             out: (rows, 5) live body state, trial-local.
             enabled: (n_live, R) bool, bodies that still collide.
+            anchored: (n_live, R) bool, anchored bodies (see :meth:`anchor`).
         """
         tol = self._tolerance
         found = []
@@ -534,6 +550,7 @@ class TrialSpaces:
             self._walls,
             tol,
             self.settings.separation_iterations,
+            None if anchored is None or not anchored.any() else anchored[trials],
         )
         t, i = np.nonzero(np.any(new != pos, axis=-1))
         rows = trials[t] * n + i
@@ -564,6 +581,22 @@ class TrialSpaces:
                 sp.write[sp.perm] = drive[rows]
             pb.set_space_bodies(sp.space, fields, sp.write_buf)
             sp.space.step(dt)
+
+    def anchor(self, trials: np.ndarray, bodies: np.ndarray, on: np.ndarray) -> None:
+        """Makes bodies ``ANCHOR_MASS_FACTOR`` times heavier (``on`` True) or
+        gives them back their mass: ``trials`` are live-row trial indices,
+        ``bodies`` body indices within those trials."""
+        n = self.n_bodies
+        for t, i, heavy in zip(
+            trials.tolist(), bodies.tolist(), on.tolist(), strict=True
+        ):
+            trial = int(self.live[t])
+            body = self._space_of[trial].bodies[trial][i]
+            mass = ANCHOR_MASS_FACTOR * self._mass if heavy else self._mass
+            # The moment scales with the mass (the same disc).
+            body.moment = body.moment * (mass / body.mass)
+            body.mass = mass
+            self._masses[t * n + i] = mass
 
     def disable(self, trials: np.ndarray, bodies: np.ndarray) -> None:
         """Takes bodies out of every collision and stops them where they are:

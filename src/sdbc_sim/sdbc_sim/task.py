@@ -44,7 +44,11 @@ Then each step of a batch runs, in this order:
    fitness and characterisation need, and returns which trials end at this step
    (the engine ends every trial at ``max_steps`` by itself). It may switch bodies
    off for good (``bodies.enabled[b, i] = False``: an escaped or captured robot):
-   the engine then takes them out of every collision and holds them still;
+   the engine then takes them out of every collision and holds them still. It may
+   also anchor bodies (``bodies.anchored[b, i] = True``, e.g. a robot docked on a
+   charger) and release them later: from the next step an anchored body is
+   ``ANCHOR_MASS_FACTOR`` times heavier, so a body that runs into it cannot push
+   it away, and the overlap projection moves only the other body;
 6. if anyone observes: ``task_state(trials, bodies)`` -> one
    :class:`~sdbc_sim.task_state.GroupState` per group;
 7. for the trials that ended: ``results(trials, length)`` -> (fitness (B,),
@@ -125,6 +129,8 @@ class BodyState:
         velocity: (B, R, 2) linear velocities, units per step.
         angular_velocity: (B, R) turning speed, radians per step: the last turn.
         enabled: (B, R) bool; False once the task has switched a body off.
+        anchored: (B, R) bool; True while the task anchors a body (see the
+            module docstring); False for every body at the start.
         cos_angle: (B, R) cos(angle), kept by the engine (it needs it anyway).
         sin_angle: (B, R) sin(angle).
     """
@@ -134,6 +140,7 @@ class BodyState:
     velocity: np.ndarray
     angular_velocity: np.ndarray
     enabled: np.ndarray
+    anchored: np.ndarray
     cos_angle: np.ndarray
     sin_angle: np.ndarray
 

@@ -340,6 +340,7 @@ def test_description_gives_the_papers_21_dimensions() -> None:
         ({"charging_input": "charging"}, "charging_input must be one of in_station"),
         ({"energy_mean_over": "steps"}, "energy_mean_over must be one of trial"),
         ({"stop_freezes_heading": 1}, "stop_freezes_heading must be true or false"),
+        ({"anchor_docked": "yes"}, "anchor_docked must be true or false"),
     ],
 )
 def test_bad_settings_are_named(overrides: dict, message: str) -> None:
@@ -368,16 +369,19 @@ def test_unplaceable_team_is_refused_before_running() -> None:
         run_batch(task, np.zeros((1, 75)), np.zeros((1, 1), dtype=np.int64))
 
 
+@pytest.mark.parametrize("anchor_docked", [False, True])
 def test_a_trial_is_the_same_alone_in_a_batch_in_any_space_and_process(
-    same_everywhere,
+    same_everywhere, anchor_docked: bool
 ) -> None:
-    """A small arena where robots meet, and little energy, so trials end apart."""
+    """A small arena where robots meet, and little energy, so trials end apart;
+    also with docked robots anchored (their mass changes during the trial)."""
     same_everywhere(
         "resource_sharing",
         arena_size=40.0,
         start_separation=12.0,
         initial_energy=150.0,
         max_steps=150,
+        anchor_docked=anchor_docked,
     )
 
 

@@ -89,6 +89,13 @@ Choices where the paper is silent (from the authors' code, MASE fd13449, where i
   at this step" (the paper: "whether it is currently charging").
 - A stop command freezes the heading (``stop_freezes_heading``), as in the
   authors' code; in gate escape their robots do turn while stopped.
+- A teammate can push a docked robot off the station, unless ``anchor_docked``:
+  the authors' robots refuse a blocked move, which pymunk's solver has no way to
+  do; anchoring makes the docked robot so heavy that the push moves it by about a
+  millionth of the pusher's speed. Measured over 200 starts with three robots
+  that all drive to the station at full speed and stop on it: push-offs per trial
+  fall from 0.58 to 0 and charging robot-steps per trial rise from 141.6 to 277.7
+  (tests/sdbc_sim/tasks/test_hand_coded_chargers.py, ``--team``).
 - The station's "is occupied" is "some robot charged at this step" (the paper:
   "whether it is currently charging a robot or not").
 - A trial ends when every robot is dead, or after ``max_steps``.
@@ -163,6 +170,11 @@ class ResourceSharingConfig:
             ``max_steps``, tau whatever the trial's length (the robots count 0 once
             all are dead), which removes the wait-then-burn optimum described in
             the module docstring.
+        anchor_docked: A docked robot is anchored (``BodyState.anchored``: a
+            million times heavier, left in place by the overlap projection)
+            until it moves, so a teammate cannot push it off the station, as
+            the authors' robots refuse a blocked move. Off by default: its
+            effect on evolution has not been measured.
     """
 
     arena_size: float = 150.0
@@ -189,6 +201,7 @@ class ResourceSharingConfig:
     stop_freezes_heading: bool = True
     charging_input: Literal["in_station", "charged"] = "in_station"
     energy_mean_over: Literal["trial", "max_steps"] = "trial"
+    anchor_docked: bool = False
 
     def __post_init__(self) -> None:
         choices = {
@@ -201,11 +214,12 @@ class ResourceSharingConfig:
                     f"resource_sharing: {name} must be one of {', '.join(allowed)}, "
                     f"got {getattr(self, name)!r}"
                 )
-        if not isinstance(self.stop_freezes_heading, bool):
-            raise ValueError(
-                "resource_sharing: stop_freezes_heading must be true or false, got "
-                f"{self.stop_freezes_heading!r}"
-            )
+        for name in ("stop_freezes_heading", "anchor_docked"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(
+                    f"resource_sharing: {name} must be true or false, got "
+                    f"{getattr(self, name)!r}"
+                )
         for name in (
             "arena_size",
             "robot_radius",
@@ -488,6 +502,8 @@ class ResourceSharing(Task):
             docked, np.minimum(trials.docked_steps + 1, c.charge_delay), 0
         )
         trials.charging = charging
+        if c.anchor_docked:
+            np.copyto(bodies.anchored, docked)
         np.minimum(
             energy + np.where(charging, c.charge_rate, 0.0), c.max_energy, out=energy
         )
