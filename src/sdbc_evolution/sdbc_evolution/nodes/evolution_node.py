@@ -1,9 +1,10 @@
 """``evolution_node``: an evolutionary experiment as a ROS 2 node.
 
 The node runs the same experiment as the command line (``sdbc-evolve``): the same
-configuration files and overrides (:func:`sdbc_evolution.run.cli.resolve_config`), the
-same runner (:class:`sdbc_evolution.run.experiment.Experiment`), the same output
-directory, checkpoints and ``resume``. After every generation it publishes its
+configuration files and overrides, resolved by the same function
+(:func:`sdbc_evolution.run.request.resolve_config`), the same runner
+(:class:`sdbc_evolution.run.experiment.Experiment`), the same output directory,
+checkpoints and ``resume``. After every generation it publishes its
 statistics on ``generation_stats`` (sdbc_msgs/GenerationStats) and the generation's
 best genome on ``best_genome`` (std_msgs/Float64MultiArray, latched).
 
@@ -32,7 +33,7 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import sys
 import threading
 import time
@@ -62,10 +63,10 @@ from std_srvs.srv import Trigger
 from sdbc_evolution.graph.client import GraphClient, GraphClientError, Stopped
 from sdbc_evolution.graph.live_evaluator import LiveEvaluator
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.cli import default_out, resolve_config
 from sdbc_evolution.run.config import ConfigError, ExperimentConfig
 from sdbc_evolution.run.evaluators import Evaluator, make_evaluator
 from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.request import ConfigRequest, default_out, resolve_config
 from sdbc_evolution.run.results import GenerationRecord
 from sdbc_msgs.msg import GenerationStats
 
@@ -139,7 +140,7 @@ class EvolutionNode(Node):
             raise ValueError(
                 f"parameter graph_timeout: must be positive, got {self.graph_timeout}"
             )
-        args = argparse.Namespace(
+        request = ConfigRequest(
             config=Path(config_path) if config_path else None,
             resume=resume,
             out=Path(output) if output else None,
@@ -151,15 +152,17 @@ class EvolutionNode(Node):
             seed=None if seed < 0 else seed,
         )
         try:
-            config = resolve_config(args)
             if self.task_name:
-                config = config.replace(task_config=parse_task_config(task_config))
-                config = config.resolved()
+                # The graph names the task for every node, with its settings.
+                request = dataclasses.replace(
+                    request, task_config=parse_task_config(task_config)
+                )
+            config = resolve_config(request)
         except (ConfigError, CheckpointError, ValueError) as error:
             raise ValueError(str(error)) from None
         self.config: ExperimentConfig = config
         self.task_name = config.task
-        self.out = args.out if args.out is not None else default_out(config)
+        self.out = request.out if request.out is not None else default_out(config)
         self.resume = resume
         self.workers = workers or None
         self.spec = task_spec(config)

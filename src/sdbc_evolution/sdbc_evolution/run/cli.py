@@ -20,7 +20,6 @@ scheduler), 130 interrupted (resume with ``--resume --out DIR``).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,24 +27,22 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import (
-    ConfigError,
-    ExperimentConfig,
-    Treatment,
-    load_config,
-    quickstart_config,
-)
+from sdbc_evolution.run.config import ConfigError, Treatment
 from sdbc_evolution.run.evaluators import (
     SchedulerUnreachable,
     add_evaluator_arguments,
     make_evaluator,
 )
 from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
-from sdbc_evolution.run.results import CONFIG_FILE, read_generations
+from sdbc_evolution.run.request import (
+    RESULTS_ROOT,
+    ConfigRequest,
+    default_out,
+    resolve_config,
+)
+from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.run.stopping import stoppable
 
-RESULTS_ROOT = Path("results")
-"""Where runs go when ``--out`` is not given."""
 GIF_NAME = "best.gif"
 """The best individual's trial, rendered in the output directory."""
 
@@ -85,51 +82,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def resolve_config(args: argparse.Namespace) -> ExperimentConfig:
-    """The run's configuration: a file (given, or the run's own when resuming), or
-    the quick-start one, with the command line's flags on top."""
-    if args.resume and args.out is None:
-        raise ConfigError("--resume needs --out DIR, the run to continue")
-    if args.config is not None:
-        config = load_config(args.config)
-    elif args.resume:
-        if not (args.out / CONFIG_FILE).is_file():
-            raise CheckpointError(f"--resume: {args.out} holds no run ({CONFIG_FILE})")
-        config = load_config(args.out / CONFIG_FILE)
-    else:
-        config = quickstart_config()
-    changes: dict = {}
-    for flag in ("task", "treatment", "generations", "seed"):
-        value = getattr(args, flag)
-        if value is not None:
-            changes[flag] = value
-    if args.population is not None:
-        changes["ga"] = dataclasses.replace(config.ga, population_size=args.population)
-    if args.trials is not None:
-        changes["evaluation"] = dataclasses.replace(
-            config.evaluation, trials=args.trials
-        )
-    try:
-        return config.replace(**changes).resolved()
-    except (TypeError, ValueError) as error:
-        raise ConfigError(str(error)) from None
-
-
-def default_out(config: ExperimentConfig) -> Path:
-    """``results/<task>-<treatment>-seed<seed>``, numbered if already taken."""
-    base = RESULTS_ROOT / f"{config.task}-{config.treatment.value}-seed{config.seed}"
-    if not base.exists():
-        return base
-    n = 2
-    while (candidate := base.with_name(f"{base.name}-{n}")).exists():
-        n += 1
-    return candidate
+def config_request(args: argparse.Namespace) -> ConfigRequest:
+    """The configuration the command line asks for."""
+    return ConfigRequest(
+        config=args.config,
+        resume=args.resume,
+        out=args.out,
+        task=args.task,
+        treatment=args.treatment,
+        generations=args.generations,
+        population=args.population,
+        trials=args.trials,
+        seed=args.seed,
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        config = resolve_config(args)
+        config = resolve_config(config_request(args))
         if args.workers is not None and args.workers < 1:
             raise ConfigError(f"--workers: must be at least 1, got {args.workers}")
         out = args.out if args.out is not None else default_out(config)

@@ -1,0 +1,111 @@
+"""What a run's configuration is made of, resolved one way for every front end.
+
+``sdbc-evolve`` (:mod:`sdbc_evolution.run.cli`) and the evolution node
+(:mod:`sdbc_evolution.nodes.evolution_node`) both ask for a run the same way: a
+configuration file or the quick-start one (or, when resuming, the run's own), with
+some settings overridden. Each fills a :class:`ConfigRequest` from its own inputs
+(flags, ROS parameters) and :func:`resolve_config` turns it into the run's
+:class:`~sdbc_evolution.run.config.ExperimentConfig`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sdbc_evolution.run.checkpoint import CheckpointError
+from sdbc_evolution.run.config import (
+    ConfigError,
+    ExperimentConfig,
+    load_config,
+    quickstart_config,
+)
+from sdbc_evolution.run.results import CONFIG_FILE
+
+RESULTS_ROOT = Path("results")
+"""Where runs go when no output directory is given."""
+
+
+@dataclass(frozen=True)
+class ConfigRequest:
+    """A run's configuration as asked for; None everywhere means "the base's".
+
+    Attributes:
+        config: A YAML experiment configuration; None: the run's own when
+            resuming, the quick-start one otherwise.
+        resume: Continue the run in ``out`` (its configuration is the base).
+        out: The run's output directory.
+        task: Task name.
+        treatment: Treatment name (``ns-sd+``, ...).
+        generations: Generations to run.
+        population: Population size.
+        trials: Trials per individual.
+        seed: Seed of the run.
+        task_config: The task's settings, replacing the base's.
+    """
+
+    config: Path | None = None
+    resume: bool = False
+    out: Path | None = None
+    task: str | None = None
+    treatment: str | None = None
+    generations: int | None = None
+    population: int | None = None
+    trials: int | None = None
+    seed: int | None = None
+    task_config: Mapping[str, Any] | None = None
+
+
+def resolve_config(request: ConfigRequest) -> ExperimentConfig:
+    """The run's configuration: a file (given, or the run's own when resuming), or
+    the quick-start one, with the request's overrides on top and every default
+    filled in.
+
+    Raises:
+        ConfigError: A bad file or override, or ``resume`` without ``out``.
+        CheckpointError: ``resume`` where ``out`` holds no run.
+    """
+    out = request.out
+    if request.resume and out is None:
+        raise ConfigError("--resume needs --out DIR, the run to continue")
+    if request.config is not None:
+        config = load_config(request.config)
+    elif request.resume and out is not None:
+        if not (out / CONFIG_FILE).is_file():
+            raise CheckpointError(f"--resume: {out} holds no run ({CONFIG_FILE})")
+        config = load_config(out / CONFIG_FILE)
+    else:
+        config = quickstart_config()
+    changes: dict[str, Any] = {}
+    for name in ("task", "treatment", "generations", "seed"):
+        value = getattr(request, name)
+        if value is not None:
+            changes[name] = value
+    if request.task_config is not None:
+        changes["task_config"] = dict(request.task_config)
+    if request.population is not None:
+        changes["ga"] = dataclasses.replace(
+            config.ga, population_size=request.population
+        )
+    if request.trials is not None:
+        changes["evaluation"] = dataclasses.replace(
+            config.evaluation, trials=request.trials
+        )
+    try:
+        return config.replace(**changes).resolved()
+    except (TypeError, ValueError) as error:
+        raise ConfigError(str(error)) from None
+
+
+def default_out(config: ExperimentConfig) -> Path:
+    """``results/<task>-<treatment>-seed<seed>``, numbered if already taken."""
+    base = RESULTS_ROOT / f"{config.task}-{config.treatment.value}-seed{config.seed}"
+    if not base.exists():
+        return base
+    n = 2
+    while (candidate := base.with_name(f"{base.name}-{n}")).exists():
+        n += 1
+    return candidate
