@@ -12,7 +12,7 @@ import pytest
 import yaml
 from sdbc_evolution.study import runner
 from sdbc_evolution.study.cli import main
-from sdbc_evolution.study.plan import LOG_FILE, RunState, run_status, study_plan
+from sdbc_evolution.study.plan import LOG_FILE, RunProgress, run_status, study_plan
 from sdbc_evolution.study.presets import StudyPreset
 from sdbc_evolution.study.runner import Execution, run_study
 from study_helpers import TINY, run_contents
@@ -76,8 +76,8 @@ def test_a_failing_run_is_named_and_the_others_finish(
     assert [r.name for r in outcome.failed] == [doomed]
     assert any(doomed in line and "the disk is on fire" in line for line in said)
     states = {s.name: run_status(s).state for s in study_plan(tiny_preset, root)}
-    assert states.pop(doomed) is RunState.NEW
-    assert set(states.values()) == {RunState.FINISHED}
+    assert states.pop(doomed) is RunProgress.NEW
+    assert set(states.values()) == {RunProgress.FINISHED}
 
 
 def test_run_then_analyse_by_default(

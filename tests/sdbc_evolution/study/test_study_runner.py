@@ -21,7 +21,7 @@ from sdbc_evolution.study.plan import (
     DISCARDED_DIR,
     LOG_FILE,
     STUDY_FILE,
-    RunState,
+    RunProgress,
     Shard,
     run_seed,
     run_status,
@@ -107,7 +107,7 @@ def test_a_second_run_skips_finished_runs_and_touches_nothing(
         s.name for s in study_plan(tiny_preset, root)
     )
     for spec in study_plan(tiny_preset, root):
-        assert run_status(spec).state is RunState.FINISHED
+        assert run_status(spec).state is RunProgress.FINISHED
         assert len(read_generations(spec.path)["generation"]) == 2
     before = files(root)
     second = run_study(
@@ -130,7 +130,7 @@ def test_an_interrupted_run_resumes_to_the_same_results(
     with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
         Experiment.create(spec.config, spec.path, evaluator).step()
     status = run_status(spec)
-    assert status.state is RunState.PARTIAL and status.generations_done == 1
+    assert status.state is RunProgress.PARTIAL and status.generations_done == 1
     outcome = run_study(
         tiny_preset, resumed, execution=Execution(workers=1), quiet=True
     )
@@ -159,7 +159,7 @@ def test_a_run_without_usable_checkpoint_is_moved_aside_and_run_again(
     moved = outcome.discarded[0][1]
     assert moved.parent == root / DISCARDED_DIR and (moved / "config.yaml").is_file()
     assert any(spec.name in line and "cannot resume" in line for line in said)
-    assert run_status(spec).state is RunState.FINISHED
+    assert run_status(spec).state is RunProgress.FINISHED
     assert len(outcome.skipped) == 3
 
 
@@ -237,10 +237,10 @@ def test_ctrl_c_when_the_running_runs_had_finished_still_stops_the_session(
     assert outcome.interrupted and not outcome.failed
     plan = study_plan(tiny_preset, root)
     assert [run_status(s).state for s in plan] == [
-        RunState.FINISHED,
-        RunState.FINISHED,
-        RunState.NEW,
-        RunState.NEW,
+        RunProgress.FINISHED,
+        RunProgress.FINISHED,
+        RunProgress.NEW,
+        RunProgress.NEW,
     ]
     assert sorted(r.name for r in outcome.ran if r.interrupted) == [
         s.name for s in plan[2:]
@@ -297,9 +297,9 @@ def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
     assert process.returncode == 130, stderr
     assert "interrupted; resume with the same command" in stderr
     states = [run_status(s).state for s in plan]
-    assert RunState.FINISHED not in states[2:]  # the later runs never started
+    assert RunProgress.FINISHED not in states[2:]  # the later runs never started
     assert subprocess.run(command, env=env, timeout=600).returncode == 0
-    assert all(run_status(s).state is RunState.FINISHED for s in plan)
+    assert all(run_status(s).state is RunProgress.FINISHED for s in plan)
     reference = tmp_path / "reference"
     run_study(
         load_preset_file(preset), reference, execution=Execution(workers=1), quiet=True

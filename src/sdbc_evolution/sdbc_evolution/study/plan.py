@@ -168,7 +168,7 @@ class Shard:
         return f"{self.index}/{self.count}"
 
 
-class RunState(str, Enum):
+class RunProgress(str, Enum):
     """How far a run directory got."""
 
     NEW = "new"
@@ -185,7 +185,7 @@ class RunState(str, Enum):
 class RunStatus:
     """A run's state, the generations it has, and why it is broken if it is."""
 
-    state: RunState
+    state: RunProgress
     generations_done: int = 0
     detail: str = ""
 
@@ -194,23 +194,23 @@ def run_status(spec: RunSpec) -> RunStatus:
     """Reads (never changes) the run directory of ``spec``."""
     results = ResultsDirectory(spec.path, ())
     if not spec.path.exists() or not results.holds_a_run():
-        return RunStatus(RunState.NEW)
+        return RunStatus(RunProgress.NEW)
     try:
         existing = load_config(spec.path / CONFIG_FILE)
     except ConfigError as error:
-        return RunStatus(RunState.BROKEN, detail=str(error))
+        return RunStatus(RunProgress.BROKEN, detail=str(error))
     if existing.replace(generations=None) != spec.config.replace(generations=None):
         return RunStatus(
-            RunState.BROKEN,
+            RunProgress.BROKEN,
             detail=f"{CONFIG_FILE} differs from the preset's configuration of this run",
         )
     try:
         checkpoint = load_checkpoint(results.checkpoint_path, spec.config.to_dict())
     except CheckpointError as error:
-        return RunStatus(RunState.BROKEN, detail=str(error))
+        return RunStatus(RunProgress.BROKEN, detail=str(error))
     if checkpoint.generation >= spec.generations:
-        return RunStatus(RunState.FINISHED, checkpoint.generation)
-    return RunStatus(RunState.PARTIAL, checkpoint.generation)
+        return RunStatus(RunProgress.FINISHED, checkpoint.generation)
+    return RunStatus(RunProgress.PARTIAL, checkpoint.generation)
 
 
 def discard(spec: RunSpec, root: str | Path) -> Path:

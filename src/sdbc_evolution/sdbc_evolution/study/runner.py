@@ -52,7 +52,7 @@ from sdbc_evolution.study.plan import (
     LOG_FILE,
     STUDY_FILE,
     RunSpec,
-    RunState,
+    RunProgress,
     Shard,
     discard,
     run_status,
@@ -204,10 +204,10 @@ def run_study(
     todo: list[tuple[RunSpec, int]] = []
     for spec in plan:
         status = run_status(spec)
-        if status.state is RunState.FINISHED:
+        if status.state is RunProgress.FINISHED:
             outcome.skipped.append(spec.name)
             continue
-        if status.state is RunState.BROKEN:
+        if status.state is RunProgress.BROKEN:
             where = discard(spec, root)
             outcome.discarded.append((spec.name, where, status.detail))
             say(f"{spec.name}: cannot resume ({status.detail}); moved to {where}")
@@ -348,7 +348,7 @@ def execute_run(
     A Ctrl-C stops it between or inside a generation (the checkpoint is atomic, so
     the run resumes where it stopped) and is reported as ``interrupted``.
     """
-    if run_status(spec).state is RunState.PARTIAL:
+    if run_status(spec).state is RunProgress.PARTIAL:
         experiment = Experiment.resume(spec.config, spec.path, evaluator)
     else:
         experiment = Experiment.create(spec.config, spec.path, evaluator)
