@@ -1,4 +1,4 @@
-"""Evaluators: where a generation's trials run. Parallelism lives here and only here.
+"""Evaluators: where a generation's trials run.
 
 Every evaluator takes genomes (G, W) and trial seeds (G, T) and returns an
 :class:`Evaluation`: per controller its fitness (the engine's aggregate over its
@@ -11,7 +11,8 @@ and the number of workers cannot change the results, so every evaluator returns 
 same arrays to the bit.
 
 - :class:`LocalEvaluator`: this machine. One worker runs in process; more run a
-  process pool (default: every core), one chunk per worker.
+  process pool (default: every core), one chunk per worker, made by
+  :mod:`sdbc_evolution.run.processes` like every process of the project.
 - :class:`DaskEvaluator`: a Dask cluster, for users who outgrow one machine; the
   scheduler's address as ``tcp://host:port``. Its workers need this package
   importable.
@@ -24,15 +25,15 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from typing import Any
 
 import numpy as np
+
+from sdbc_evolution.run.processes import available_cores, worker_pool
 
 DEFAULT_CONNECT_TIMEOUT = 10.0
 """Seconds to wait for a Dask scheduler before giving up."""
@@ -218,20 +219,6 @@ class Evaluator(ABC):
         self.close()
 
 
-def available_cores() -> int:
-    """Cores this process may run on (its CPU affinity where the OS tells)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return os.cpu_count() or 1
-
-
-def _limit_threads() -> None:
-    # One simulation process per core: BLAS threads would only oversubscribe.
-    from threadpoolctl import threadpool_limits
-
-    threadpool_limits(1)
-
-
 class LocalEvaluator(Evaluator):
     """Evaluates on this machine: in process with one worker, else a process pool.
 
@@ -261,12 +248,7 @@ class LocalEvaluator(Evaluator):
                 evaluate_chunk(self.spec, genomes[a:b], seeds[a:b]) for a, b in bounds
             ]
         if self._pool is None:
-            # forkserver: workers start clean, whatever threads this process has.
-            self._pool = ProcessPoolExecutor(
-                max_workers=self._workers,
-                mp_context=get_context("forkserver"),
-                initializer=_limit_threads,
-            )
+            self._pool = worker_pool(self._workers)
         futures = [
             self._pool.submit(evaluate_chunk, self.spec, genomes[a:b], seeds[a:b])
             for a, b in bounds

@@ -9,7 +9,8 @@ said by name.
 Where the work goes:
 
 - **local** (default): up to ``workers`` runs at once (default: every core), each in
-  a process of its own evaluating in process. A study is many independent runs, so
+  a process of its own (made by :mod:`sdbc_evolution.run.processes`) evaluating in
+  process. A study is many independent runs, so
   this keeps every core busy through the serial parts of a generation (ranking,
   mutual information, output) that a pool shared by one run would leave idle.
   ``workers=1`` runs everything in this process.
@@ -35,7 +36,6 @@ from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -46,13 +46,14 @@ from sdbc_evolution.run.evaluators import (
     make_evaluator,
 )
 from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
 from sdbc_evolution.run.stopping import STOP_SIGNALS
 from sdbc_evolution.study.plan import (
     LOG_FILE,
     STUDY_FILE,
-    RunSpec,
     RunProgress,
+    RunSpec,
     Shard,
     discard,
     run_status,
@@ -465,12 +466,10 @@ def _interrupt_once(signum: int, frame: Any) -> None:
 
 def _child(spec: RunSpec, note: dict[str, Any], messages: Any) -> None:
     """One run in a process of its own; everything it says goes to ``messages``."""
-    from threadpoolctl import threadpool_limits
-
     for sig in STOP_SIGNALS:
         signal.signal(sig, _interrupt_once)
     # One run per core: BLAS threads in k-means would only oversubscribe.
-    threadpool_limits(1)
+    limit_threads()
     try:
         with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
             result = execute_run(
@@ -494,8 +493,7 @@ class _Children:
     """Runs in child processes, at most ``slots`` at once, reporting to a queue."""
 
     def __init__(self, slots: int, note: dict[str, Any], progress: _Progress) -> None:
-        self.context = get_context("forkserver")
-        self.messages = self.context.Queue()
+        self.messages = message_queue()
         self.slots = slots
         self.note = note
         self.progress = progress
@@ -504,10 +502,7 @@ class _Children:
         self.stopping = False
 
     def start(self, spec: RunSpec, done: int) -> None:
-        process = self.context.Process(
-            target=_child, args=(spec, self.note, self.messages), name=spec.name
-        )
-        process.start()
+        process = start_process(_child, (spec, self.note, self.messages), spec.name)
         self.running[spec.name] = (process, spec)
         self.progress.started(spec.name, done, spec.generations)
 
