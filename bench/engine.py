@@ -43,8 +43,8 @@ from sdbc_sim.tasks import available_tasks, make_task
 
 
 class PhysicsClock:
-    """Times TrialSpaces.read and TrialSpaces.step (bulk transfer and chipmunk)
-    while ``on``."""
+    """Times TrialSpaces.read and TrialSpaces.step (bulk transfer and chipmunk;
+    a step reads its Space back itself) while ``on``."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
@@ -61,9 +61,11 @@ class PhysicsClock:
             if clock.on:
                 clock.seconds += time.perf_counter() - t0
 
-        def timed_step(spaces: TrialSpaces, drive: np.ndarray) -> None:
+        def timed_step(
+            spaces: TrialSpaces, drive: np.ndarray, state: np.ndarray
+        ) -> None:
             t0 = time.perf_counter()
-            step(spaces, drive)
+            step(spaces, drive, state)
             if clock.on:
                 clock.seconds += time.perf_counter() - t0
 
@@ -147,13 +149,13 @@ def standalone_floor_rate(
     # What the engine writes (see BatchSimulation._drive): the velocity itself, or
     # the force that reaches it in one step (unit mass, dt 1 in every task).
     force = settings.actuation == "force"
+    spaces.read(rows)
     t0 = time.perf_counter()
     for _ in range(steps):
-        spaces.read(rows)
         drive[:, col.angle] = rows[:, 2]
         drive[:, col.x] = speed * np.cos(rows[:, 2]) - force * rows[:, 3]
         drive[:, col.y] = speed * np.sin(rows[:, 2]) - force * rows[:, 4]
-        spaces.step(drive)
+        spaces.step(drive, rows)
     elapsed = time.perf_counter() - t0
     return steps * rows.shape[0] / elapsed
 

@@ -193,8 +193,7 @@ class BatchSimulation:
                     "step: outputs must lie in [0, 1] (NaN is not allowed)"
                 )
         speed, turn = task.actuate(self.trials, self.bodies, outputs)
-        self.spaces.step(self._drive(speed, turn))
-        self.spaces.read(self._rows)
+        self.spaces.step(self._drive(speed, turn), self._rows)
         self.spaces.separate(self._rows, self.bodies.enabled, self._anchored)
         self.step_count += 1
         k = self.step_count

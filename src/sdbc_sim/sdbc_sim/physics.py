@@ -57,13 +57,20 @@ from sdbc_sim.task import Task
 
 _READ = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
 _WRITE = {
-    "velocity": pb.BodyFields.ANGLE
+    "velocity": pb.BodyFields.POSITION
+    | pb.BodyFields.ANGLE
     | pb.BodyFields.VELOCITY
     | pb.BodyFields.ANGULAR_VELOCITY,
-    "force": pb.BodyFields.ANGLE | pb.BodyFields.ANGULAR_VELOCITY | pb.BodyFields.FORCE,
+    "force": pb.BodyFields.POSITION
+    | pb.BodyFields.ANGLE
+    | pb.BodyFields.ANGULAR_VELOCITY
+    | pb.BodyFields.FORCE,
 }
 """Fields written before each step, per actuation mode (pymunk.batch keeps the
-fields in the order ANGLE, VELOCITY, ANGULAR_VELOCITY, FORCE: see DRIVE_COLUMNS)."""
+fields in the order POSITION, ANGLE, VELOCITY, ANGULAR_VELOCITY, FORCE: the
+position, then the drive row as DRIVE_COLUMNS lays it out)."""
+_POSITION_WIDTH = 2
+"""The first columns of a Space's write rows: the position, written every step."""
 _IDS = pb.BodyFields.BODY_ID
 _CONTACT_IDS = (
     pb.ArbiterFields.BODY_A_ID
@@ -336,7 +343,7 @@ class _Space:
         self.perm: np.ndarray | None = None
         self.read_buf = pb.Buffer()
         self.write_buf = pb.Buffer()
-        self.write = np.zeros((0, WRITE_WIDTH))
+        self.write = np.zeros((0, _POSITION_WIDTH + WRITE_WIDTH))
         self.n_extra = 0
         self.contact_buf = pb.Buffer()
         self.sorted_ids = np.zeros(0, dtype=np.uintp)
@@ -348,12 +355,15 @@ class _Space:
 
     def attach_write(self) -> None:
         """Counts the Space's bodies (dynamic first, then static) and gives pymunk
-        a zero-copy view of a (bodies, 4) drive array."""
+        a zero-copy view of a (bodies, 2 + 4) array: position, then drive row.
+        Static bodies are written too: their rows keep the positions they have."""
         self.read_buf.clear()
-        pb.get_space_bodies(self.space, _IDS, self.read_buf)
+        pb.get_space_bodies(self.space, _IDS | pb.BodyFields.POSITION, self.read_buf)
         total = len(memoryview(self.read_buf.int_buf()).cast("P"))
         self.n_extra = total - self.n_dynamic
-        self.write = np.zeros((total, WRITE_WIDTH))
+        self.write = np.zeros((total, _POSITION_WIDTH + WRITE_WIDTH))
+        positions = np.frombuffer(self.read_buf.float_buf(), dtype=np.float64)
+        self.write[:, :_POSITION_WIDTH] = positions.reshape(total, _POSITION_WIDTH)
         self.write_buf.set_float_buf(self.write.reshape(-1))
 
     def index_bodies(self) -> None:
@@ -428,43 +438,22 @@ class TrialSpaces:
         self.spaces: list[_Space] = []
         self._space_of: dict[int, _Space] = {}
         offsets = np.empty((n_trials, 2))
-        for start in range(0, n_trials, per_space):
-            ids = list(range(start, min(start + per_space, n_trials)))
-            sp = _Space(ids)
-            space = sp.space
-            space.iterations = settings.iterations
-            # No push-out by chipmunk: overlaps are projected away after each step.
-            space.collision_bias = 1.0
-            space.use_spatial_hash(cell, settings.hash_cells_per_trial * len(ids))
-            robots: list[pymunk.Body | pymunk.Shape] = []
-            for slot, b in enumerate(ids):
-                self._space_of[b] = sp
-                offsets[b] = self.grid.offset(slot)
-                sp.bodies[b], sp.shapes[b] = [], []
-                for i, r in enumerate(radii):
-                    body = pymunk.Body(mass, pymunk.moment_for_circle(mass, 0.0, r))
-                    body.position = tuple(offsets[b] + position[b, i])
-                    body.angle = float(angle[b, i])
-                    shape = pymunk.Circle(body, float(r))
-                    shape.friction = settings.friction
-                    sp.bodies[b].append(body)
-                    sp.shapes[b].append(shape)
-                    robots += [body, shape]
-            # Robots before walls: their hash ids follow the row order (see above).
-            space.add(*robots)
-            for b in ids:
-                for a, z in walls:
-                    seg = pymunk.Segment(
-                        space.static_body,
-                        tuple(offsets[b] + a),
-                        tuple(offsets[b] + z),
-                        0.0,
-                    )
-                    seg.friction = settings.friction
-                    space.add(seg)
-            sp.attach_write()
-            sp.index_bodies()
-            self.spaces.append(sp)
+        # Building Spaces makes many small objects and no garbage: the cyclic
+        # collector would only walk them over and over.
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            for start in range(0, n_trials, per_space):
+                ids = list(range(start, min(start + per_space, n_trials)))
+                sp = self._build_space(
+                    ids, radii, mass, walls, position, angle, cell, offsets
+                )
+                for b in ids:
+                    self._space_of[b] = sp
+                self.spaces.append(sp)
+        finally:
+            if collecting:
+                gc.enable()
         self._tolerance = settings.overlap_tolerance * float(np.min(radii))
         self._radii = np.asarray(radii, dtype=np.float64)
         self._walls = walls
@@ -472,6 +461,67 @@ class TrialSpaces:
         self._mass = mass
         self._masses = np.full(n_trials * n_bodies, mass)
         self._index_spaces()
+
+    def _build_space(
+        self,
+        ids: list[int],
+        radii: np.ndarray,
+        mass: float,
+        walls: np.ndarray,
+        position: np.ndarray,
+        angle: np.ndarray,
+        cell: float,
+        offsets: np.ndarray,
+    ) -> _Space:
+        """One Space holding trials ``ids`` (filling their rows of ``offsets``)."""
+        settings = self.settings
+        sp = _Space(ids)
+        space = sp.space
+        space.iterations = settings.iterations
+        # No push-out by chipmunk: overlaps are projected away after each step.
+        space.collision_bias = 1.0
+        space.use_spatial_hash(cell, settings.hash_cells_per_trial * len(ids))
+        moments = [pymunk.moment_for_circle(mass, 0.0, float(r)) for r in radii]
+        # All bodies first, then all shapes: chipmunk's bodies then lie together
+        # in memory, which its per-body loops read in order.
+        for slot, b in enumerate(ids):
+            offsets[b] = self.grid.offset(slot)
+            bodies: list[pymunk.Body] = []
+            sp.bodies[b] = bodies
+            for i, moment in enumerate(moments):
+                body = pymunk.Body(mass, moment)
+                body.position = tuple(offsets[b] + position[b, i])
+                body.angle = float(angle[b, i])
+                bodies.append(body)
+        robots: list[pymunk.Body | pymunk.Shape] = [
+            body for b in ids for body in sp.bodies[b]
+        ]
+        for b in ids:
+            shapes: list[pymunk.Circle] = []
+            sp.shapes[b] = shapes
+            for body, r in zip(sp.bodies[b], radii, strict=True):
+                shape = pymunk.Circle(body, float(r))
+                shape.friction = settings.friction
+                shapes.append(shape)
+            robots += shapes
+        # Robots before walls: their hash ids follow the row order (see above).
+        space.add(*robots)
+        segments: list[pymunk.Segment] = []
+        for b in ids:
+            for a, z in walls:
+                seg = pymunk.Segment(
+                    space.static_body,
+                    tuple(offsets[b] + a),
+                    tuple(offsets[b] + z),
+                    0.0,
+                )
+                seg.friction = settings.friction
+                segments.append(seg)
+        if segments:
+            space.add(*segments)
+        sp.attach_write()
+        sp.index_bodies()
+        return sp
 
     @classmethod
     def of_task(
@@ -513,19 +563,28 @@ class TrialSpaces:
         """Fills ``out`` (rows, 5) with x, y, angle, vx, vy per live body, x and y
         trial-local."""
         for sp, rows in self._ranges:
-            sp.read_buf.clear()
-            pb.get_space_bodies(sp.space, _READ, sp.read_buf)
-            data = np.frombuffer(sp.read_buf.float_buf(), dtype=np.float64)
-            data = data.reshape(-1, READ_WIDTH)[: rows.stop - rows.start]
-            out[rows] = data if sp.perm is None else data[sp.perm]
-        out[:, 0:2] -= self._offsets
+            self._read_space(sp, rows, out)
+
+    def _read_space(self, sp: _Space, rows: slice, out: np.ndarray) -> None:
+        """The rows of one Space, as :meth:`read` fills them."""
+        sp.read_buf.clear()
+        pb.get_space_bodies(sp.space, _READ, sp.read_buf)
+        data = np.frombuffer(sp.read_buf.float_buf(), dtype=np.float64)
+        data = data.reshape(-1, READ_WIDTH)[: rows.stop - rows.start]
+        block = out[rows]
+        if sp.perm is None:
+            np.copyto(block, data)
+        else:
+            np.take(data, sp.perm, axis=0, out=block)
+        block[:, 0:2] -= self._offsets[rows]
 
     def separate(
         self, out: np.ndarray, enabled: np.ndarray, anchored: np.ndarray | None = None
     ) -> None:
         """Projects apart the bodies of every trial where chipmunk found a contact
         overlapping by more than the tolerance, in ``out`` (as filled by
-        :meth:`read`) and in pymunk; see :func:`project_apart`.
+        :meth:`read`); the next :meth:`step` writes them into pymunk. See
+        :func:`project_apart`.
 
         Args:
             out: (rows, 5) live body state, trial-local.
@@ -554,33 +613,39 @@ class TrialSpaces:
         )
         t, i = np.nonzero(np.any(new != pos, axis=-1))
         rows = trials[t] * n + i
-        world = new[t, i] + self._offsets[rows]
-        # What pymunk will hold, so the next read gives the same numbers.
-        out[rows, 0:2] = world - self._offsets[rows]
-        for trial, body, (x, y) in zip(
-            self.live[trials[t]].tolist(), i.tolist(), world.tolist(), strict=True
-        ):
-            self._space_of[trial].bodies[trial][body].position = (x, y)
+        # What pymunk will hold: the next step writes every body's position from
+        # ``out`` in bulk. Rounded as there, to world coordinates and back (exact:
+        # every world coordinate has the same exponent).
+        out[rows, 0:2] = (new[t, i] + self._offsets[rows]) - self._offsets[rows]
 
     @property
     def drive_columns(self) -> DriveColumns:
         """The layout of the drive rows :meth:`step` takes."""
         return DRIVE_COLUMNS[self.settings.actuation]
 
-    def step(self, drive: np.ndarray) -> None:
-        """Sets (rows, 4) angle, angular velocity and velocity or force (as
-        :attr:`drive_columns` lays them out) of every live body and steps every
-        Space once."""
+    def step(self, drive: np.ndarray, state: np.ndarray) -> None:
+        """Steps every Space once and reads it back into ``state``.
+
+        Before its step, every body gets its position from ``state`` (rows, 5),
+        as :meth:`read` and :meth:`separate` left it (a projection reaches pymunk
+        here, in bulk; trial-local plus offset gives back the same world
+        coordinate, so a body that was not moved is set where it is), and its
+        angle, angular velocity and velocity or force from ``drive`` (rows, 4, as
+        :attr:`drive_columns` lays them out). Right after its own step, while its
+        bodies are still in cache, each Space is read into ``state`` as
+        :meth:`read` does.
+        """
         dt = self.settings.dt
         fields = _WRITE[self.settings.actuation]
+        offsets = self._offsets
+        p = _POSITION_WIDTH
         for sp, rows in self._ranges:
-            n = rows.stop - rows.start
-            if sp.perm is None:
-                sp.write[:n] = drive[rows]
-            else:
-                sp.write[sp.perm] = drive[rows]
+            at = slice(0, rows.stop - rows.start) if sp.perm is None else sp.perm
+            sp.write[at, :p] = state[rows, 0:2] + offsets[rows]
+            sp.write[at, p:] = drive[rows]
             pb.set_space_bodies(sp.space, fields, sp.write_buf)
             sp.space.step(dt)
+            self._read_space(sp, rows, state)
 
     def anchor(self, trials: np.ndarray, bodies: np.ndarray, on: np.ndarray) -> None:
         """Makes bodies ``ANCHOR_MASS_FACTOR`` times heavier (``on`` True) or
