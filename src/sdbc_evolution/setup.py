@@ -21,6 +21,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "characteriser_node = sdbc_evolution.nodes.characteriser_node:main",
             "evolution_node = sdbc_evolution.nodes.evolution_node:main",
             "recorder = sdbc_evolution.nodes.recorder_node:main",
             "sdbc-graph = sdbc_evolution.graph.launch:main",

@@ -9,14 +9,18 @@ Names are relative, so a whole graph can be pushed into a namespace with
 QoS, chosen on purpose:
 
 - Lockstep topics (sensors, commands) are reliable (a lost message would stall
-  the trial until the timeout) and transient-local with a history of one: at most
-  one message per topic is ever in flight in lockstep, and a reader that matches
-  a writer after it wrote still gets that message, so the first step of a trial
-  cannot be lost to discovery. Stale messages are told apart by trial id and step.
+  the trial until the timeout) and transient-local: a reader that matches a
+  writer after it wrote still gets its messages, so the first step of a trial
+  cannot be lost to discovery. The lockstep's readers keep one message (at most
+  one per topic is ever in flight in lockstep); the writers keep a trial of
+  history, so that a recorder gets every step. Stale messages are told apart by
+  trial id and step.
 - The task state is reliable with a history of :data:`TASK_STATE_DEPTH` messages,
   a whole default-length trial, so that a subscriber building SDBCs never misses
   a step while it catches up; a missed step is detected downstream (the stream
   extractor demands consecutive steps), never silently averaged over.
+- Characterisations (one message per trial) are reliable, transient-local and
+  :data:`TASK_STATE_DEPTH` deep: no trial's vector is lost to a late or slow reader.
 - Markers and statistics are for people watching: reliable, shallow.
 """
 
@@ -46,6 +50,8 @@ EVOLUTION_NODE = "evolution"
 """Name of the evolution node."""
 RECORDER_NODE = "recorder"
 """Name of the recorder node."""
+CHARACTERISER_NODE = "characteriser"
+"""Name of the characteriser node."""
 
 SENSORS_TOPIC = "sensors"
 """sdbc_msgs/SensorReadings, one robot's inputs, inside the robot's namespace."""
@@ -61,6 +67,11 @@ GENERATION_STATS_TOPIC = "generation_stats"
 """sdbc_msgs/GenerationStats, one message per generation."""
 BEST_GENOME_TOPIC = "best_genome"
 """std_msgs/Float64MultiArray, the best genome of the latest generation."""
+CHARACTERISATION_TOPIC = "characterisation"
+"""sdbc_msgs/Characterisation, one message per trial, from the characteriser."""
+RECORDER_READY_TOPIC = "recorder/ready"
+"""std_msgs/Bool, latched: true once the recorder has matched every publisher of
+every topic it records."""
 REPLAY_BEST_SERVICE = "replay_best"
 """std_srvs/Trigger, offered by the evolution node: run the current best live."""
 
@@ -73,7 +84,17 @@ LOCKSTEP_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-"""Sensors and commands: reliable, transient-local, one message deep."""
+"""Sensors and commands as the lockstep reads them: reliable, transient-local, one
+message deep (a reader only ever wants the latest)."""
+LOCKSTEP_PUBLISHER_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=TASK_STATE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""Sensors and commands as they are published: a trial of history, so that a
+reader that records them (and missed some, or matched late) gets every step
+resent; the lockstep's own readers still keep only the latest."""
 TASK_STATE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=TASK_STATE_DEPTH,
@@ -95,6 +116,14 @@ LATCHED_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 """The best genome: the latest value, also for subscribers that join later."""
+CHARACTERISATION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=TASK_STATE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""Characterisations: reliable, transient-local and deep, so that a subscriber that
+joins late or falls behind still gets every trial's vector."""
 
 
 def robot_namespace(robot: int) -> str:
