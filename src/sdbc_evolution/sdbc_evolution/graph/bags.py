@@ -10,16 +10,39 @@ A reader then decodes every message without this project installed.
 Messages are written as the CDR bytes received from a subscription (``raw=True``),
 never re-serialised: ``rclpy.serialization.serialize_message`` may append padding
 that rosbags rejects (docs/ros2-from-pypi.md, pitfall 7).
+
+What rosbag2 itself writes is written too, so that ``ros2 bag play`` and other
+readers get the same bag as from ``ros2 bag record``: each topic's offered QoS
+profiles (one per publisher; a replay offers them again, so a reliable,
+transient-local lockstep topic is not replayed with default QoS) in
+``metadata.yaml`` and in its MCAP channel's metadata, beside the channel's
+``topic_type_hash``; and ``ros_distro: jazzy``.
 """
 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from io import BytesIO
 from pathlib import Path
+from typing import Any
 
-from rosbags.interfaces import Connection
+from rosbags.interfaces import (
+    Connection,
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
 from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import (
+    Channel,
+    McapWriter,
+    write_channel,
+    write_string,
+)
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -27,6 +50,82 @@ BAG_VERSION = 9
 """rosbag2 metadata version written (that of ROS 2 Jazzy)."""
 PROJECT_INTERFACES = ("sdbc_msgs",)
 """Interface packages of this project, registered in every bag's type store."""
+ROS_DISTRO = "jazzy"
+"""The ROS 2 distribution the bags are written for (``ros_distro`` in the metadata)."""
+_ROSBAGS_DISTRO_LINE = "ros_distro: rosbags"
+"""What rosbags writes in place of the distribution."""
+
+
+def _jazzy(metadata: str) -> str:
+    """``metadata`` (rosbag2 YAML) with ``ros_distro`` naming the distribution."""
+    if _ROSBAGS_DISTRO_LINE not in metadata:
+        raise RuntimeError(
+            f"rosbags wrote no '{_ROSBAGS_DISTRO_LINE}' line: its writer changed "
+            "(requirements.txt pins the version this module was written for)"
+        )
+    return metadata.replace(_ROSBAGS_DISTRO_LINE, f"ros_distro: {ROS_DISTRO}")
+
+
+class _Rosbag2McapWriter(McapWriter):
+    """rosbags' MCAP storage, with the channel and bag metadata of rosbag2's own
+    MCAP storage: ``topic_type_hash`` beside ``offered_qos_profiles`` on each
+    channel, and the Jazzy distribution in the serialized bag metadata."""
+
+    def add_connection(self, connection: Connection, offered_qos_profiles: str) -> None:
+        metadata = BytesIO()
+        for key, value in (
+            ("offered_qos_profiles", offered_qos_profiles),
+            ("topic_type_hash", connection.digest),
+        ):
+            write_string(metadata, key)
+            write_string(metadata, value)
+        self.channels.append(
+            Channel(
+                connection.id,
+                connection.msgtype,
+                connection.topic,
+                connection.ext.serialization_format,
+                metadata.getvalue(),
+            )
+        )
+        self.channel_stats[connection.id] = 0
+        write_channel(self.chunk.bio, self.channels[-1], self.schemas)
+
+    def close(self, version: int, metadata: str) -> None:
+        super().close(version, _jazzy(metadata))
+
+
+class _Rosbag2Writer(Writer):
+    """rosbags' writer with :class:`_Rosbag2McapWriter` and ``ros_distro: jazzy``."""
+
+    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _Rosbag2McapWriter}
+
+    def close(self) -> None:
+        super().close()
+        self.metapath.write_text(_jazzy(self.metapath.read_text()))
+
+
+def _time(nanoseconds: int) -> QosTime:
+    return QosTime(*divmod(int(nanoseconds), 10**9))
+
+
+def bag_qos(profile: Any) -> Qos:
+    """An rclpy QoS profile (a publisher's, from the graph) as rosbags writes it.
+
+    Policies that rmw reports as unknown for another process's publisher (its
+    history and depth) stay unknown, as rosbag2 records them.
+    """
+    return Qos(
+        history=QosHistory[profile.history.name],
+        depth=int(profile.depth),
+        reliability=QosReliability[profile.reliability.name],
+        durability=QosDurability[profile.durability.name],
+        deadline=_time(profile.deadline.nanoseconds),
+        lifespan=_time(profile.lifespan.nanoseconds),
+        liveliness=QosLiveliness[profile.liveliness.name],
+        liveliness_lease_duration=_time(profile.liveliness_lease_duration.nanoseconds),
+        avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions),
+    )
 
 
 def interface_definitions(package: str, share: Path | None = None) -> dict[str, str]:
@@ -122,15 +221,18 @@ class BagWriter:
         if self.path.exists():
             raise FileExistsError(f"bag {self.path} exists already; not overwriting")
         self.typestore = typestore if typestore is not None else project_typestore()
-        self._writer = Writer(
+        self._writer = _Rosbag2Writer(
             self.path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP
         )
         self._writer.open()
         self._connections: dict[str, Connection] = {}
         self.counts: dict[str, int] = {}
 
-    def add_topic(self, topic: str, msgtype: str) -> None:
-        """Declares a topic and its type; its definition goes into the bag.
+    def add_topic(
+        self, topic: str, msgtype: str, offered_qos: Sequence[Qos] = ()
+    ) -> None:
+        """Declares a topic, its type and its publishers' offered QoS (see
+        :func:`bag_qos`); the type's definition goes into the bag.
 
         Raises:
             LookupError: If the type is unknown and cannot be registered.
@@ -146,7 +248,10 @@ class BagWriter:
             return
         ensure_type(self.typestore, msgtype)
         self._connections[topic] = self._writer.add_connection(
-            topic, msgtype, typestore=self.typestore
+            topic,
+            msgtype,
+            typestore=self.typestore,
+            offered_qos_profiles=list(offered_qos),
         )
         self.counts[topic] = 0
 

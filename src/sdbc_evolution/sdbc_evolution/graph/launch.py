@@ -74,29 +74,28 @@ def build_parser() -> argparse.ArgumentParser:
 def _wait_until_ready(
     graph: ProcessGraph, node: Any, client: Any, record: bool, timeout: float
 ) -> None:
-    """Waits for the simulator's service and, when recording, for the recorder
-    to subscribe to the task state."""
+    """Waits for the simulator's service and, when recording, for the recorder's
+    ``recorder/ready`` (every recorded topic matched to all its publishers)."""
     import rclpy
-    from sdbc_sim.nodes.interface import RECORDER_NODE, TASK_STATE_TOPIC
+    from sdbc_sim.nodes.interface import LATCHED_QOS, RECORDER_READY_TOPIC
+    from std_msgs.msg import Bool
 
     deadline = time.monotonic() + timeout
-
-    def recorder_ready() -> bool:
-        infos = node.get_subscriptions_info_by_topic("/" + TASK_STATE_TOPIC)
-        return any(info.node_name == RECORDER_NODE for info in infos)
-
-    while not (client.service_is_ready() and (not record or recorder_ready())):
+    recorder = []
+    node.create_subscription(
+        Bool, RECORDER_READY_TOPIC, lambda m: recorder.append(m.data), LATCHED_QOS
+    )
+    while not (client.service_is_ready() and (not record or any(recorder))):
         if dead := graph.exited():
             raise RuntimeError(f"node processes ended before the first trial: {dead}")
         if time.monotonic() > deadline:
             raise RuntimeError(
                 f"the graph did not come up within {timeout:g} s (simulator service "
-                f"ready: {client.service_is_ready()})"
+                f"ready: {client.service_is_ready()}"
+                + (f", recorder ready: {any(recorder)}" if record else "")
+                + ")"
             )
         rclpy.spin_once(node, timeout_sec=0.1)
-    # Discovery is not symmetric: the simulator's writer may match the recorder's
-    # reader a moment after this side sees it.
-    time.sleep(0.5)
 
 
 def run_trials(

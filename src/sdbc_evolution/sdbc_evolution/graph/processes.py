@@ -54,10 +54,13 @@ class NodeProcess:
     Attributes:
         name: Label in logs and messages ("simulator", "controllers 0-1").
         argv: The command line.
+        stops_last: Stopped only once every other process has ended (the
+            recorder: it must take what the others sent as they stopped).
     """
 
     name: str
     argv: tuple[str, ...]
+    stops_last: bool = False
 
 
 def module_command(module: str, *args: str) -> tuple[str, ...]:
@@ -124,6 +127,7 @@ def graph_processes(
                 module_command(
                     RECORDER_MODULE, "--output", str(record), "--topics", *topics, *ros
                 ),
+                stops_last=True,
             )
         )
     return processes
@@ -225,26 +229,42 @@ class ProcessGraph:
         popen.wait()
 
     def stop(self) -> dict[str, int]:
-        """Stops every process: SIGINT, then SIGKILL after ``shutdown_timeout``;
-        then removes the Fast DDS files they left. Returns the exit codes."""
-        for popen in self.running.values():
-            if popen.poll() is None:
-                with contextlib.suppress(ProcessLookupError):
-                    popen.send_signal(signal.SIGINT)
-        deadline = time.monotonic() + self.shutdown_timeout
-        codes = {}
-        for name, popen in self.running.items():
-            try:
-                codes[name] = popen.wait(max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                popen.kill()
-                codes[name] = popen.wait()
+        """Stops every process: SIGINT, then SIGKILL after ``shutdown_timeout``,
+        first the others, then those that stop last (each round with its own
+        timeout); then removes the Fast DDS files they left. Returns the exit
+        codes."""
+        codes: dict[str, int] = {}
+        for last in (False, True):
+            codes.update(
+                self._stop_round(
+                    {
+                        name: popen
+                        for name, popen in self.running.items()
+                        if self.processes[name].stops_last == last
+                    }
+                )
+            )
         # Fast DDS leaves shared-memory files behind after SIGKILL, and sometimes
         # after a clean exit too (a port file that another process still mapped).
         remove_orphaned_dds_files(self._started_at)
         for log in self._logs:
             log.close()
         self._logs.clear()
+        return {name: codes[name] for name in self.running}
+
+    def _stop_round(self, popens: Mapping[str, subprocess.Popen]) -> dict[str, int]:
+        for popen in popens.values():
+            if popen.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    popen.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + self.shutdown_timeout
+        codes = {}
+        for name, popen in popens.items():
+            try:
+                codes[name] = popen.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                popen.kill()
+                codes[name] = popen.wait()
         return codes
 
     def __enter__(self) -> ProcessGraph:

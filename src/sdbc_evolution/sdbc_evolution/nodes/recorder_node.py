@@ -4,13 +4,27 @@ The node ``recorder`` subscribes to each requested topic as soon as the topic
 appears in the graph (its type read from the graph), and writes every message
 as received, stamped with its time of arrival, through
 :class:`sdbc_evolution.graph.bags.BagWriter`. Ctrl-C (SIGINT) or SIGTERM closes the bag
-cleanly: the MCAP file is finished and ``metadata.yaml`` written.
+cleanly: what has arrived is taken, the MCAP file finished and ``metadata.yaml``
+written.
+
+So that a bag holds every step:
+
+- Each subscription asks for what its publishers offer: reliable unless one offers
+  only best effort, transient-local if all of them are (then a publisher that
+  matches late still delivers the history it keeps), a thousand messages deep.
+- The node publishes ``true`` on ``recorder/ready`` (std_msgs/Bool, latched) only
+  once every requested topic is subscribed and each subscription has matched every
+  publisher the graph shows for its topic; a launcher waits for that before the
+  first trial.
+- A launcher stops the recorder last, after the publishers, and the recorder takes
+  everything still waiting before it closes the bag.
 
 Messages are taken straight from an rcl wait set, bytes as they arrived, without
 an executor round per message: the recorder keeps up with a lockstep graph of
-several thousand messages per second. Subscriptions follow their publishers'
-reliability (best-effort publishers get a best-effort reader) and keep a whole
-default trial of history.
+several thousand messages per second. The node is a full ROS 2 node all the same:
+an executor thread answers its parameter and type description services, while the
+subscriptions belong to a callback group that executors leave alone.
+The bag carries each topic's offered QoS, as ``ros2 bag record`` writes it.
 
 Usage::
 
@@ -26,25 +40,32 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.callback_groups import CallbackGroup
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerGuardCondition
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from sdbc_sim.nodes.interface import (
+    LATCHED_QOS,
     RECORDER_NODE,
+    RECORDER_READY_TOPIC,
     TASK_STATE_QOS,
     UsageError,
     split_ros_arguments,
 )
+from std_msgs.msg import Bool
 
-from sdbc_evolution.graph.bags import BagWriter, message_class
+from sdbc_evolution.graph.bags import BagWriter, bag_qos, message_class
 
 DISCOVERY_PERIOD = 0.2
 """Seconds between looks at the graph for requested topics not yet recorded."""
@@ -52,6 +73,21 @@ DISCOVERY_PERIOD = 0.2
 
 def _ignore(_: bytes) -> None:
     """Messages are taken by the recorder's own loop, never by an executor."""
+
+
+class OwnLoopGroup(CallbackGroup):
+    """A callback group that no executor runs: its subscriptions are waited on and
+    taken by the recorder's own loop, while an executor serves the node's
+    services."""
+
+    def can_execute(self, entity: Any) -> bool:
+        return False
+
+    def beginning_execution(self, entity: Any) -> bool:
+        return False
+
+    def ending_execution(self, entity: Any) -> None:
+        """Never called: nothing of this group begins execution."""
 
 
 class RecorderNode(Node):
@@ -67,8 +103,8 @@ class RecorderNode(Node):
         FileExistsError: The bag exists already.
     """
 
-    def __init__(self, output: Path, topics: Sequence[str], **kwargs) -> None:
-        super().__init__(RECORDER_NODE, start_parameter_services=False, **kwargs)
+    def __init__(self, output: Path, topics: Sequence[str], **kwargs: Any) -> None:
+        super().__init__(RECORDER_NODE, **kwargs)
         if not topics:
             raise ValueError("recorder: no topics to record")
         try:
@@ -79,7 +115,12 @@ class RecorderNode(Node):
             raise ValueError(f"recorder: bad topic name: {error}") from None
         self.bag = BagWriter(output)
         self._subscriptions_by_topic: dict[str, Subscription] = {}
-        self._interrupt = SignalHandlerGuardCondition(self.context)
+        self._own_loop = OwnLoopGroup()
+        self._interrupt = GuardCondition(None, None, context=self.context)
+        self.stopping = False
+        self._ready = self.create_publisher(Bool, RECORDER_READY_TOPIC, LATCHED_QOS)
+        self.is_ready = False
+        self._unmatched: list[str] = []
 
     @property
     def missing(self) -> list[str]:
@@ -87,11 +128,10 @@ class RecorderNode(Node):
         return [t for t in self.wanted if t not in self._subscriptions_by_topic]
 
     def discover(self) -> None:
-        """Subscribes to the requested topics that have appeared in the graph."""
+        """Subscribes to the requested topics that have appeared in the graph, and
+        announces readiness once every one is matched to all its publishers."""
         missing = set(self.missing)
-        if not missing:
-            return
-        for topic, types in self.get_topic_names_and_types():
+        for topic, types in self.get_topic_names_and_types() if missing else ():
             if topic not in missing:
                 continue
             if len(types) != 1:
@@ -100,35 +140,72 @@ class RecorderNode(Node):
                 )
                 self.wanted.remove(topic)
                 continue
-            msgtype = types[0]
-            try:
-                self.bag.add_topic(topic, msgtype)
-                msg_class = message_class(msgtype)
-            except (LookupError, ValueError) as error:
-                self.get_logger().error(f"topic {topic}: {error}; not recorded")
-                self.wanted.remove(topic)
-                continue
-            qos = QoSProfile(
-                history=TASK_STATE_QOS.history,
-                depth=TASK_STATE_QOS.depth,
-                reliability=self._reliability(topic),
-            )
-            self._subscriptions_by_topic[topic] = self.create_subscription(
-                msg_class, topic, _ignore, qos, raw=True
-            )
-            self.get_logger().info(f"recording {topic} ({msgtype})")
+            self._subscribe(topic, types[0])
+        if not self.is_ready:
+            self._announce_when_ready()
 
-    def _reliability(self, topic: str) -> ReliabilityPolicy:
-        """Reliable, unless a publisher only offers best effort."""
-        offered = [
-            i.qos_profile.reliability for i in self.get_publishers_info_by_topic(topic)
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        offered = [i.qos_profile for i in self.get_publishers_info_by_topic(topic)]
+        if not offered:
+            return  # a subscriber made the topic appear; wait for a publisher
+        try:
+            self.bag.add_topic(topic, msgtype, [bag_qos(q) for q in offered])
+            msg_class = message_class(msgtype)
+        except (LookupError, ValueError) as error:
+            self.get_logger().error(f"topic {topic}: {error}; not recorded")
+            self.wanted.remove(topic)
+            return
+        reliability = (
+            ReliabilityPolicy.BEST_EFFORT
+            if any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
+            else ReliabilityPolicy.RELIABLE
+        )
+        durability = (
+            DurabilityPolicy.TRANSIENT_LOCAL
+            if all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+            else DurabilityPolicy.VOLATILE
+        )
+        qos = QoSProfile(
+            history=TASK_STATE_QOS.history,
+            depth=TASK_STATE_QOS.depth,
+            reliability=reliability,
+            durability=durability,
+        )
+        self._subscriptions_by_topic[topic] = self.create_subscription(
+            msg_class, topic, _ignore, qos, raw=True, callback_group=self._own_loop
+        )
+        self.get_logger().info(f"recording {topic} ({msgtype})")
+
+    def unmatched(self) -> list[str]:
+        """Requested topics not subscribed yet, or whose subscription has not
+        matched every publisher the graph shows."""
+        return [
+            topic
+            for topic in self.wanted
+            if (subscription := self._subscriptions_by_topic.get(topic)) is None
+            or subscription.get_publisher_count() < self.count_publishers(topic)
         ]
-        if ReliabilityPolicy.BEST_EFFORT in offered:
-            return ReliabilityPolicy.BEST_EFFORT
-        return ReliabilityPolicy.RELIABLE
+
+    def _announce_when_ready(self) -> None:
+        unmatched = self.unmatched()
+        if unmatched != self._unmatched:
+            self._unmatched = unmatched
+            if unmatched:
+                self.get_logger().info(f"waiting to match: {', '.join(unmatched)}")
+        if not unmatched:
+            self.is_ready = True
+            self._ready.publish(Bool(data=True))
+            self.get_logger().info("ready: every topic matched to its publishers")
+
+    def request_stop(self) -> None:
+        """Makes :meth:`record` take what is waiting and return; safe to call from
+        a signal handler."""
+        self.stopping = True
+        self._interrupt.trigger()
 
     def record(self) -> None:
-        """Records until Ctrl-C or SIGTERM."""
+        """Records until :meth:`request_stop` (Ctrl-C, SIGTERM), then takes what is
+        still waiting."""
         wait_set = None
         n_waited = -1
         next_look = 0.0
@@ -150,10 +227,14 @@ class RecorderNode(Node):
             for topic, subscription in subscriptions:
                 if subscription.handle.pointer in ready:
                     self._take_all(topic, subscription)
-            if self._interrupt.handle.pointer in wait_set.get_ready_entities(
-                "guard_condition"
-            ) or not rclpy.ok(context=self.context):
+            if self.stopping or not rclpy.ok(context=self.context):
+                self.drain()
                 return
+
+    def drain(self) -> None:
+        """Takes every message that has arrived and not been written yet."""
+        for topic, subscription in self._subscriptions_by_topic.items():
+            self._take_all(topic, subscription)
 
     def _take_all(self, topic: str, subscription: Subscription) -> None:
         handle = subscription.handle
@@ -196,10 +277,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _terminate(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     try:
         argv, plain = split_ros_arguments("recorder", argv, allow_plain=True)
@@ -207,11 +284,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(error, file=sys.stderr)
         return 2
     args = build_parser().parse_args(plain)
-    rclpy.init(args=argv)
-    signal.signal(signal.SIGTERM, _terminate)
+    # Ctrl-C and SIGTERM do not interrupt the recording loop where it stands (a
+    # message taken but not written would be lost): they ask it to stop.
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node: RecorderNode | None = None
+    # The services (parameters, type description) are answered by an executor in
+    # a thread of their own; the messages by the recording loop.
+    executor = SingleThreadedExecutor()
+    services = threading.Thread(target=executor.spin, name="services", daemon=True)
     try:
         node = RecorderNode(args.output, args.topics)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda *_, node=node: node.request_stop())
+        executor.add_node(node)
+        services.start()
         node.record()
     except (ValueError, FileExistsError, LookupError) as error:
         print(f"recorder: error: {error}", file=sys.stderr)
@@ -220,7 +306,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         pass
     finally:
         if node is not None:
+            # The bag first: the executor may be slow to stop, the data must not be.
             node.close()
+        executor.shutdown()
+        if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -22,6 +22,10 @@ Usage::
 
 With ``--robots`` several controllers (one node per robot, each in its robot's
 namespace) share one process and one executor.
+
+Ctrl-C and SIGTERM stop the node once its answers in flight have been
+acknowledged by their readers (at most a few seconds), so that a recorder gets
+the last step's commands too.
 """
 
 from __future__ import annotations
@@ -46,13 +50,14 @@ from rclpy.executors import (
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerGuardCondition
+from rclpy.signals import SignalHandlerOptions
 
 from sdbc_msgs.msg import RobotCommand, SensorReadings
 from sdbc_sim.network import NetworkShape, forward
 from sdbc_sim.nodes.interface import (
     COMMAND_TOPIC,
     CONTROLLER_NODE,
+    LOCKSTEP_PUBLISHER_QOS,
     LOCKSTEP_QOS,
     SENSORS_TOPIC,
     UsageError,
@@ -60,6 +65,7 @@ from sdbc_sim.nodes.interface import (
     robot_namespace,
     split_ros_arguments,
 )
+from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
 
 DEFAULT_TASK = "gate_escape"
 """Task of a node started without a ``task`` parameter."""
@@ -146,8 +152,8 @@ class ControllerNode(Node):
             raise ValueError(f"parameter genome: {error}") from None
         finally:
             self._declaring = False
-        self._publisher = self.create_publisher(
-            RobotCommand, COMMAND_TOPIC, LOCKSTEP_QOS
+        self.publisher = self.create_publisher(
+            RobotCommand, COMMAND_TOPIC, LOCKSTEP_PUBLISHER_QOS
         )
         self._command = RobotCommand()  # refilled for every answer
         self.sensors = self.create_subscription(
@@ -212,7 +218,7 @@ class ControllerNode(Node):
         command.header.stamp.sec, command.header.stamp.nanosec = divmod(
             time.time_ns(), 1_000_000_000
         )
-        self._publisher.publish(command)
+        self.publisher.publish(command)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -248,7 +254,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    rclpy.init(args=argv)
+    # Ctrl-C ends serve() but keeps the context up, so that the last commands
+    # can still reach slower readers (a recorder) before the nodes go.
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    stop = StopSignals(rclpy.get_default_context()).install()
     nodes: list[ControllerNode] = []
     executor = SingleThreadedExecutor()
     try:
@@ -256,7 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             node = ControllerNode(robot)
             nodes.append(node)
             executor.add_node(node)
-        serve(nodes, executor)
+        serve(nodes, executor, stop)
     except ValueError as error:
         print(f"controller_node: error: {error}", file=sys.stderr)
         return 2
@@ -264,14 +273,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         pass
     finally:
         executor.shutdown()
+        flush_publishers(node.publisher for node in nodes)
         for node in nodes:
             node.destroy_node()
+        stop.destroy()
         rclpy.try_shutdown()
     return 0
 
 
-def serve(nodes: Sequence[ControllerNode], executor: Executor) -> None:
-    """Answers sensor readings until shutdown.
+def serve(
+    nodes: Sequence[ControllerNode], executor: Executor, stop: StopSignals
+) -> None:
+    """Answers sensor readings until ``stop`` is requested.
 
     Readings are taken straight from an rcl wait set and answered at once: an
     executor round in Python costs more than the network itself, and lockstep
@@ -280,33 +293,26 @@ def serve(nodes: Sequence[ControllerNode], executor: Executor) -> None:
     set sees a service request, and at least every :data:`IDLE_PERIOD` seconds.
     """
     context = executor.context
-    interrupt = SignalHandlerGuardCondition(context)
+    interrupt = stop.guard
     services = [service for node in nodes for service in node.services]
     wait_set = _rclpy.WaitSet(len(nodes), 1, 0, 0, len(services), 0, context.handle)
-    try:
-        while context.ok():
-            wait_set.clear_entities()
-            for node in nodes:
-                wait_set.add_subscription(node.sensors.handle)
-            for service in services:
-                wait_set.add_service(service.handle)
-            wait_set.add_guard_condition(interrupt.handle)
-            wait_set.wait(int(IDLE_PERIOD * 1e9))
-            ready = wait_set.get_ready_entities("subscription")
-            for node in nodes:
-                if node.sensors.handle.pointer in ready:
-                    while (
-                        taken := node.sensors.handle.take_message(SensorReadings, False)
-                    ) is not None:
-                        node.answer(taken[0])
-            if interrupt.handle.pointer in wait_set.get_ready_entities(
-                "guard_condition"
-            ):
-                return
-            if wait_set.get_ready_entities("service") or not ready:
-                executor.spin_once(timeout_sec=0.0)
-    finally:
-        interrupt.destroy()
+    while context.ok() and not stop.requested.is_set():
+        wait_set.clear_entities()
+        for node in nodes:
+            wait_set.add_subscription(node.sensors.handle)
+        for service in services:
+            wait_set.add_service(service.handle)
+        wait_set.add_guard_condition(interrupt.handle)
+        wait_set.wait(int(IDLE_PERIOD * 1e9))
+        ready = wait_set.get_ready_entities("subscription")
+        for node in nodes:
+            if node.sensors.handle.pointer in ready:
+                while (
+                    taken := node.sensors.handle.take_message(SensorReadings, False)
+                ) is not None:
+                    node.answer(taken[0])
+        if wait_set.get_ready_entities("service") or not ready:
+            executor.spin_once(timeout_sec=0.0)
 
 
 if __name__ == "__main__":

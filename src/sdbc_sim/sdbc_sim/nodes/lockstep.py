@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 from rclpy.callback_groups import CallbackGroup
+from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerGuardCondition
@@ -29,6 +30,7 @@ from rclpy.signals import SignalHandlerGuardCondition
 from sdbc_msgs.msg import RobotCommand, SensorReadings
 from sdbc_sim.nodes.interface import (
     COMMAND_TOPIC,
+    LOCKSTEP_PUBLISHER_QOS,
     LOCKSTEP_QOS,
     SENSORS_TOPIC,
     robot_topic,
@@ -95,6 +97,8 @@ class Lockstep:
         n_outputs: O, network outputs per robot.
         callback_group: A mutually exclusive group that also holds the callback
             in which trials run.
+        interrupt: A guard condition triggered on shutdown (Ctrl-C); default:
+            rclpy's own signal handler's.
     """
 
     def __init__(
@@ -103,12 +107,13 @@ class Lockstep:
         n_robots: int,
         n_outputs: int,
         callback_group: CallbackGroup,
+        interrupt: GuardCondition | None = None,
     ) -> None:
         self.n_robots = n_robots
         self.n_outputs = n_outputs
         self._publishers = [
             node.create_publisher(
-                SensorReadings, robot_topic(i, SENSORS_TOPIC), LOCKSTEP_QOS
+                SensorReadings, robot_topic(i, SENSORS_TOPIC), LOCKSTEP_PUBLISHER_QOS
             )
             for i in range(n_robots)
         ]
@@ -125,7 +130,10 @@ class Lockstep:
         self.command_topics = [s.topic_name for s in self._subscriptions]
         self.sensor_topics = [p.topic_name for p in self._publishers]
         context = node.context
-        self._interrupt = SignalHandlerGuardCondition(context)
+        self._own_interrupt = interrupt is None
+        self._interrupt = (
+            SignalHandlerGuardCondition(context) if interrupt is None else interrupt
+        )
         self._wait_set = _rclpy.WaitSet(n_robots, 1, 0, 0, 0, 0, context.handle)
         self._clock = node.get_clock()
         # One message per robot, refilled at every step.
@@ -255,6 +263,12 @@ class Lockstep:
             return True
         return False
 
+    @property
+    def publishers(self) -> list:
+        """The sensor publishers, one per robot."""
+        return list(self._publishers)
+
     def destroy(self) -> None:
-        """Releases the interrupt guard condition."""
-        self._interrupt.destroy()
+        """Releases the interrupt guard condition, if it is the lockstep's own."""
+        if self._own_interrupt:
+            self._interrupt.destroy()

@@ -16,6 +16,13 @@ as ``run_batch``), then, at every step k = 1, 2, ...:
    visualization_msgs/MarkerArray), while the controllers compute step k + 1;
    a topic without subscribers is not built.
 
+So that every reader (a recorder, a characteriser) gets every step, the node
+waits before step 1 until each of its publishers has matched every reader the
+graph shows (at most ``discovery_timeout`` seconds), and answers only once every
+reader has acknowledged the trial's messages (at most
+:data:`sdbc_sim.nodes.shutdown.FLUSH_TIMEOUT` seconds; a reader that is gone
+costs that wait, and is named in a warning).
+
 The answer carries the trial's fitness, task-specific characterisation and length,
 or ``success = false`` and a message saying why the trial was aborted; the node then
 serves the next trial as usual. Given the same genome on the controllers and the
@@ -34,6 +41,7 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import rclpy
@@ -45,6 +53,7 @@ from rcl_interfaces.msg import (
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from visualization_msgs.msg import MarkerArray
 
 from sdbc_msgs.msg import TaskState as TaskStateMsg
@@ -63,6 +72,7 @@ from sdbc_sim.nodes.interface import (
 )
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
 from sdbc_sim.nodes.markers import markers_from_task_state
+from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
 from sdbc_sim.task_state_msgs import task_state_to_msg
 
 DEFAULT_TASK = "gate_escape"
@@ -75,6 +85,10 @@ DEFAULT_MARKER_PERIOD = 10
 """Markers are published every this many steps (0: never)."""
 MAX_TIMEOUT = 3600.0
 """Largest timeout a parameter accepts, seconds."""
+READER_POLL = 0.02
+"""Seconds between checks while waiting for readers to match."""
+SIGNAL_POLL = 0.2
+"""Seconds the executor waits at most, so that Ctrl-C is seen that soon."""
 
 
 class TrialAborted(RuntimeError):
@@ -110,13 +124,15 @@ class SimulatorNode(Node):
         marker_period: Publish markers every this many steps; 0 for never.
 
     Args:
+        interrupt: Triggered on Ctrl-C, to abort a running trial; default:
+            rclpy's signal handler's.
         **kwargs: Passed on to :class:`rclpy.node.Node`.
 
     Raises:
         ValueError: A bad task or task_config, naming it.
     """
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, interrupt: Any = None, **kwargs: Any) -> None:
         super().__init__(SIMULATOR_NODE, **kwargs)
         task_name = self.declare_parameter(
             "task",
@@ -161,6 +177,7 @@ class SimulatorNode(Node):
             self.task.layout.n_controlled,
             self.task.network.n_outputs,
             trial_group,
+            interrupt,
         )
         self._task_state = self.create_publisher(
             TaskStateMsg, TASK_STATE_TOPIC, TASK_STATE_QOS
@@ -205,6 +222,7 @@ class SimulatorNode(Node):
         lockstep, stepper = self.lockstep, self._stepper
         try:
             lockstep.wait_for_controllers(self._parameter("discovery_timeout"))
+            self.wait_for_readers(self._parameter("discovery_timeout"))
             lockstep.drain()
             stepper.reset(seed)
             marker_period = int(self._parameter("marker_period"))
@@ -222,8 +240,36 @@ class SimulatorNode(Node):
                     break
         except LockstepError as error:
             raise TrialAborted(str(error)) from None
+        if late := flush_publishers(self.publishers):
+            self.get_logger().warning(
+                f"trial {trial_id}: not every reader acknowledged {', '.join(late)}"
+            )
         fitness, characterisation, length = stepper.result()
         return TrialOutcome(trial_id, fitness, characterisation, length)
+
+    @property
+    def publishers(self) -> list:
+        """Every publisher of a trial's messages."""
+        return [self._task_state, self._markers, *self.lockstep.publishers]
+
+    def wait_for_readers(self, timeout: float) -> None:
+        """Waits until each publisher has matched every reader that the graph
+        shows for its topic (discovery is not symmetric: a reader can see a
+        writer before the writer has matched it, and would then miss the first
+        steps); after ``timeout`` seconds, goes on with a warning."""
+        deadline = time.monotonic() + timeout
+        while unmatched := [
+            p.topic_name
+            for p in self.publishers
+            if p.get_subscription_count() < self.count_subscribers(p.topic_name)
+        ]:
+            if time.monotonic() >= deadline:
+                self.get_logger().warning(
+                    f"readers of {', '.join(unmatched)} not matched within "
+                    f"{timeout:g} s; they may miss the first steps"
+                )
+                return
+            time.sleep(READER_POLL)
 
     def _publish_state(self, trial_id: int, step: int, marker_period: int) -> None:
         """Publishes the task state after ``step`` and, when due, the markers.
@@ -276,14 +322,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as error:
         print(error, file=sys.stderr)
         return 2
-    rclpy.init(args=argv)
+    # Ctrl-C aborts a running trial and leaves spin, but keeps the context up,
+    # so that what was published can still reach slower readers (a recorder).
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    stop = StopSignals(rclpy.get_default_context()).install()
     node: SimulatorNode | None = None
     # Two threads: parameter and graph services stay responsive while a trial runs.
     executor = MultiThreadedExecutor(num_threads=2)
     try:
-        node = SimulatorNode()
+        node = SimulatorNode(interrupt=stop.guard)
         executor.add_node(node)
-        executor.spin()
+        # Bounded waits: Python runs the signal handler only between them.
+        while not stop.requested.is_set():
+            executor.spin_once(timeout_sec=SIGNAL_POLL)
     except ValueError as error:
         print(f"simulator_node: error: {error}", file=sys.stderr)
         return 2
@@ -292,7 +343,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         executor.shutdown()
         if node is not None:
+            flush_publishers(node.publishers)
             node.destroy_node()
+        stop.destroy()
         rclpy.try_shutdown()
     return 0
 
