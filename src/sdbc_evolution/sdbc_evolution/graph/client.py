@@ -10,6 +10,16 @@ trajectory is kept. A trial counts only if every step's task state arrived, step
 1 to its length in order; otherwise it is run again (trials are deterministic, so
 a repeat is the same trial), up to :data:`TRIAL_ATTEMPTS` times.
 
+The client needs the task only through the messages: a task of this project gives
+its description up front; for another system's task (``task=None``) the client
+needs the number of robots, learns the task description from the first trial's
+task state messages, and the names of the SDBC dimensions with it
+(:attr:`GraphClient.sdbc_names`). What the client relies on is the contract written
+in the README ("Evolution through another simulator"): a node ``simulator`` with
+``task`` and ``task_config`` parameters and the ``run_trial`` service, the
+``task_state`` topic, and a controller node ``robot_<i>/controller`` per robot with
+a double-array ``genome`` parameter.
+
 The caller's node must be spun by an executor in another thread (the client
 waits on futures that the executor completes). The service clients share a
 reentrant callback group; the task state subscription has a mutually exclusive
@@ -41,7 +51,9 @@ from sdbc_sim.nodes.interface import (
     robot_namespace,
 )
 from sdbc_sim.task import Task
+from sdbc_sim.task_state import TaskDescription
 
+from sdbc_evolution.sdbc.characterisation import dimension_names
 from sdbc_evolution.sdbc.messages import MessageSdbcExtractor
 from sdbc_msgs.msg import TaskState as TaskStateMsg
 from sdbc_msgs.srv import RunTrial
@@ -136,27 +148,52 @@ class GraphClient:
 
     Args:
         node: The caller's node, spun by an executor in another thread.
-        task: The task the graph runs (its description builds the SDBC).
-        task_name: Its registry name.
+        task: The task the graph runs (its description builds the SDBC), or None
+            for a task of another system, learnt from the messages.
+        task_name: Its name (the simulator's ``task`` parameter).
         task_config: Its setting overrides.
         timeout: Seconds to wait for any one answer of the graph.
         stop: When set, waiting stops with :class:`Stopped`.
+        n_robots: The number of robots (controllers); needed when ``task`` is
+            None, and must agree with the task otherwise.
+
+    Raises:
+        ValueError: ``n_robots`` missing or not positive, or at odds with ``task``.
     """
 
     def __init__(
         self,
         node: Node,
-        task: Task,
+        task: Task | None,
         task_name: str,
         task_config: dict[str, Any] | None = None,
         timeout: float = 30.0,
         stop: threading.Event | None = None,
+        n_robots: int | None = None,
     ) -> None:
+        if task is not None:
+            if n_robots not in (None, task.layout.n_controlled):
+                raise ValueError(
+                    f"graph client: task {task_name!r} has "
+                    f"{task.layout.n_controlled} robots, not {n_robots}"
+                )
+            n_robots = task.layout.n_controlled
+        if n_robots is None or n_robots < 1:
+            raise ValueError(
+                f"graph client: task {task_name!r} is not one of this project's; "
+                f"the number of robots must be given (got {n_robots})"
+            )
         self.node = node
         self.task = task
         self.task_name = task_name
         self.task_config = dict(task_config or {})
-        self.n_robots = task.layout.n_controlled
+        self.n_robots = n_robots
+        self.description: TaskDescription | None = (
+            None if task is None else task.description
+        )
+        """The task description; learnt from the first trial without a task (once
+        every group has shown an entity, so that its geometry is known)."""
+        self._names: tuple[str, ...] | None = None
         self.timeout = timeout
         self.stop = stop or threading.Event()
         self.lock = threading.RLock()
@@ -187,6 +224,22 @@ class GraphClient:
         self._streams: dict[int, _TrialStream] = {}
         self._streams_lock = threading.Lock()
         self._next_trial_id = time.time_ns()
+
+    @property
+    def sdbc_names(self) -> tuple[str, ...]:
+        """Names of the SDBC dimensions.
+
+        Raises:
+            GraphClientError: For a task learnt from messages, before a trial ran.
+        """
+        if self.description is not None:
+            return dimension_names(self.description)
+        if self._names is None:
+            raise GraphClientError(
+                f"task {self.task_name!r}: no trial has run yet, so its description "
+                "(and the SDBC's names) is not known"
+            )
+        return self._names
 
     def _wait_event(self, event: threading.Event, what: str, timeout: float) -> None:
         """Waits for ``event``; Stopped if :attr:`stop` is set meanwhile,
@@ -300,7 +353,7 @@ class GraphClient:
         for _ in range(TRIAL_ATTEMPTS):
             trial_id = self._next_trial_id
             self._next_trial_id += 1
-            stream = _TrialStream(MessageSdbcExtractor(self.task.description))
+            stream = _TrialStream(MessageSdbcExtractor(self.description))
             with self._streams_lock:
                 self._streams[trial_id] = stream
             try:
@@ -318,6 +371,10 @@ class GraphClient:
                 with self._streams_lock:
                     del self._streams[trial_id]
             if stream.vector is not None and stream.steps == answer.length:
+                if self.description is None:
+                    self._names = stream.extractor.dimension_names
+                    if not stream.extractor.unknown_geometries:
+                        self.description = stream.extractor.description
                 return LiveTrial(
                     trial_id=trial_id,
                     seed=seed,

@@ -49,19 +49,20 @@ class LiveEvaluator(Evaluator):
         """Evaluates genome g in the trials ``seeds[g]``, one trial at a time."""
         n, t = seeds.shape
         fitness = np.empty((n, t))
-        characterisation = np.empty((n, t, self.client.task.characterisation_size))
+        # Sizes come from the trials: a task of another system is known only so.
+        characterisation: list[list[np.ndarray]] = []
         sdbc: list[list[np.ndarray]] = []
         for g in range(n):
             with self.client.lock:
                 self.client.set_genome(genomes[g])
                 trials = [self.client.run_trial(int(s)) for s in seeds[g]]
             fitness[g] = [trial.fitness for trial in trials]
-            characterisation[g] = [trial.characterisation for trial in trials]
+            characterisation.append([trial.characterisation for trial in trials])
             sdbc.append([trial.sdbc for trial in trials])
         return Evaluation(
             fitness=controller_fitness(fitness, self.spec.fitness_mean),
             trial_fitness=fitness,
-            characterisation=characterisation.mean(axis=1),
+            characterisation=np.asarray(characterisation).mean(axis=1),
             sdbc=np.asarray(sdbc).mean(axis=1),
         )
 

@@ -17,6 +17,12 @@ Where the trials run is the ``evaluator`` parameter:
   parameters, asks the simulator for the trials, and builds the SDBC vectors from
   the ``task_state`` topic. Same results as ``local``, to round-off; much slower.
 
+The task may be another system's (a task this project's engine does not have,
+run by another simulator or by robots, see the README's contract): the node then
+needs the ``robots`` and ``genome_length`` parameters, runs ``live`` only, and
+learns the length of the task-specific characterisation and the names of the SDBC
+dimensions from a first trial (genome all zeros, seed 0) before the run starts.
+
 The current best can be watched live: the ``replay_best`` service (std_srvs/Trigger)
 runs it once on the graph (controllers and simulator), and the ``replay_best``
 parameter does so after every generation.
@@ -57,6 +63,8 @@ from sdbc_sim.nodes.interface import (
     parse_task_config,
     split_ros_arguments,
 )
+from sdbc_sim.task import Task
+from sdbc_sim.tasks import available_tasks
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
@@ -64,7 +72,7 @@ from sdbc_evolution.graph.client import GraphClient, GraphClientError, Stopped
 from sdbc_evolution.graph.live_evaluator import LiveEvaluator
 from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import ConfigError, ExperimentConfig
-from sdbc_evolution.run.evaluators import Evaluator, make_evaluator
+from sdbc_evolution.run.evaluators import Evaluator, TaskInfo, make_evaluator
 from sdbc_evolution.run.experiment import Experiment, task_spec
 from sdbc_evolution.run.request import ConfigRequest, default_out, resolve_config
 from sdbc_evolution.run.results import GenerationRecord
@@ -96,6 +104,8 @@ class EvolutionNode(Node):
         replay_best: Replay each generation's best live on the graph.
         replay_seed: Seed of the replayed trials.
         graph_timeout: Seconds to wait for the live graph.
+        robots, genome_length: For a task that is not this project's: the
+            number of robots (controllers) and of genes (0: the task's).
         exit_when_done: Leave when the run is complete (else keep serving
             ``replay_best``).
 
@@ -131,6 +141,15 @@ class EvolutionNode(Node):
             "graph_timeout", DEFAULT_GRAPH_TIMEOUT, "Seconds to wait for the graph"
         )
         self.exit_when_done = p("exit_when_done", True, "Leave when the run is done")
+        self.robots = p(
+            "robots", 0, "Robots of another system's task (0: the task's)", minimum=0
+        )
+        self.genome_length = p(
+            "genome_length",
+            0,
+            "Genes of another system's task (0: the task's)",
+            minimum=0,
+        )
         if self.evaluator_name not in EVALUATORS:
             raise ValueError(
                 f"parameter evaluator: {self.evaluator_name!r} is not one of "
@@ -166,7 +185,7 @@ class EvolutionNode(Node):
         self.resume = resume
         self.workers = workers or None
         self.spec = task_spec(config)
-        self.task = self.spec.build()
+        self.task = self._build_task()
         self.stop = threading.Event()
         self.finished = threading.Event()
         self.failure: str | None = None
@@ -197,6 +216,62 @@ class EvolutionNode(Node):
             ]
         return self.declare_parameter(name, default, descriptor).value
 
+    def _build_task(self) -> Task | None:
+        """This project's task, checked against ``robots`` and ``genome_length``;
+        None for another system's task, which must then run live with both set.
+
+        Raises:
+            ValueError: Naming the parameter at odds with the task.
+        """
+        known = available_tasks()
+        if self.spec.name not in known:
+            if self.evaluator_name != "live":
+                raise ValueError(
+                    f"task {self.spec.name!r} is not one of this project's "
+                    f"({', '.join(sorted(known))}): it can only be evaluated live "
+                    "(evaluator:=live), by the system that runs it"
+                )
+            if self.robots < 1 or self.genome_length < 1:
+                raise ValueError(
+                    f"task {self.spec.name!r} is not one of this project's: parameters "
+                    f"robots and genome_length must be set (got robots {self.robots}, "
+                    f"genome_length {self.genome_length})"
+                )
+            return None
+        task = self.spec.build()
+        for name, given, actual in (
+            ("robots", self.robots, task.layout.n_controlled),
+            ("genome_length", self.genome_length, task.genome_length),
+        ):
+            if given and given != actual:
+                raise ValueError(
+                    f"parameter {name}: {given}, but task {self.spec.name!r} has "
+                    f"{actual}"
+                )
+        return task
+
+    def task_info(self, evaluator: Evaluator) -> TaskInfo:
+        """The task's sizes and SDBC names: from the task, or for another system's
+        task from a first trial on the live graph."""
+        if self.task is not None:
+            return TaskInfo.of(self.spec)
+        client = self.graph_client()
+        with client.lock:
+            client.set_genome(np.zeros(self.genome_length))
+            trial = client.run_trial(0)
+        info = TaskInfo(
+            name=self.spec.name,
+            genome_length=self.genome_length,
+            characterisation_size=int(trial.characterisation.shape[0]),
+            sdbc_names=client.sdbc_names,
+        )
+        self.get_logger().info(
+            f"task {info.name}: learnt from a first trial: {trial.length} steps, "
+            f"{info.characterisation_size} characterisation values, "
+            f"{len(info.sdbc_names)} SDBC dimensions"
+        )
+        return info
+
     def graph_client(self) -> GraphClient:
         """The client of the live graph, created and connected on first use.
 
@@ -213,6 +288,7 @@ class EvolutionNode(Node):
                     dict(self.spec.overrides),
                     timeout=self.graph_timeout,
                     stop=self.stop,
+                    n_robots=self.robots or None,
                 )
                 client.wait_for_graph()
                 self._client = client
@@ -229,10 +305,15 @@ class EvolutionNode(Node):
         the experiment thread."""
         try:
             with self.make_evaluator() as evaluator:
+                info = self.task_info(evaluator)
                 if self.resume:
-                    experiment = Experiment.resume(self.config, self.out, evaluator)
+                    experiment = Experiment.resume(
+                        self.config, self.out, evaluator, info
+                    )
                 else:
-                    experiment = Experiment.create(self.config, self.out, evaluator)
+                    experiment = Experiment.create(
+                        self.config, self.out, evaluator, info
+                    )
                 self.get_logger().info(
                     f"{self.config.task} {self.config.treatment.value}: "
                     f"{experiment.generations} generations into {self.out} "
