@@ -3,10 +3,11 @@
 How to write a task
 ===================
 
-A task is one module in ``sdbc_sim/tasks/`` holding a settings dataclass (every
-number of docs/reference-setup.md as a default, one docstring line per field, checked in
-``__post_init__``) and a :class:`Task` subclass with class attributes ``name`` and
-``config_class``, and ends with ``TASK = MyTask``: the registry
+A task is one module in ``sdbc_sim/tasks/`` holding a settings class made with
+:func:`sdbc_sim.settings.settings` (every number as a default with its docstring,
+its limits in the annotations, checks across fields in ``__post_init__``) and a
+:class:`Task` subclass with class attributes ``name`` and ``config_class``, and
+ends with ``TASK = MyTask``: the registry
 (:func:`sdbc_sim.tasks.make_task`) finds it there. It never touches the engine.
 
 The engine owns the physics: every body of every trial is a pymunk circle driven

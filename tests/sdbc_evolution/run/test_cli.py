@@ -70,8 +70,8 @@ def test_the_best_individual_is_rendered_to_a_gif(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--population", "1"], "ga.population_size: must be at least 2"),
-        (["--generations", "0"], "generations: must be at least 1"),
+        (["--population", "1"], "ga.population_size: Input should be greater than"),
+        (["--generations", "0"], "generations: Input should be greater than"),
         (["--task", "gate_scape"], "unknown task 'gate_scape'"),
         (
             ["--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "0.5"],
@@ -116,6 +116,25 @@ def test_bad_config_file_names_the_key(
     bad.write_text("task: gate_escape\nga: {elite: 3}\n")
     assert run_cli("--config", str(bad), "--out", str(tmp_path / "x")) == 2
     assert "ga.elite" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("setting", "message"),
+    [
+        ("max_steps: .nan", "task_config.max_steps: Input should be a valid integer"),
+        ("max_steps: 300.5", "task_config.max_steps: Input should be a valid integer"),
+        ("max_speed: .inf", "task_config.max_speed: Input should be a finite number"),
+        ("max_speed: '1'", "task_config.max_speed: Input should be a valid number"),
+    ],
+)
+def test_a_bad_task_setting_exits_2_before_any_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], setting: str, message: str
+) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(TINY.replace("{max_steps: 60}", "{" + setting + "}"))
+    assert run_cli("--config", str(bad), "--out", str(tmp_path / "x")) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
 
 
 def test_corrupt_or_foreign_checkpoints_exit_2_and_change_nothing(

@@ -10,6 +10,7 @@ from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
     Treatment,
+    check_task_config,
     config_from_dict,
     dump_config,
     load_config,
@@ -58,37 +59,49 @@ def test_yaml_round_trip(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("data", "message"),
     [
-        ({"ga": {"populaton_size": 5}}, r"unknown key.*ga\.populaton_size"),
-        ({"colour": "red"}, r"unknown key.*colour"),
-        ({"ga": {"population_size": 1}}, r"ga\.population_size: must be at least 2"),
+        (
+            {"ga": {"populaton_size": 5}},
+            r"^ga\.populaton_size: unknown key; known keys: \[.*population_size",
+        ),
+        ({"colour": "red"}, r"^colour: unknown key"),
+        (
+            {"ga": {"population_size": 1}},
+            r"ga\.population_size: Input should be greater than or equal to 2, got 1",
+        ),
         ({"ga": {"population_size": 10, "elites": 10}}, r"ga\.elites"),
         ({"ga": {"tournament_size": 0}}, r"ga\.tournament_size"),
         ({"ga": {"mutation_probability": 1.2}}, r"ga\.mutation_probability"),
         ({"ga": {"mutation_sigma": -0.5}}, r"ga\.mutation_sigma"),
-        ({"ga": {"population_size": 2.5}}, r"ga\.population_size: expected an integer"),
+        (
+            {"ga": {"population_size": 2.5}},
+            r"ga\.population_size: .* valid integer, got 2\.5",
+        ),
         (
             {"ga": {"population_size": True}},
-            r"ga\.population_size: expected an integer",
+            r"ga\.population_size: .* valid integer, got True",
         ),
-        ({"ga": {"mutation_sigma": ".nan"}}, r"ga\.mutation_sigma: expected a number"),
+        ({"ga": {"mutation_sigma": ".nan"}}, r"ga\.mutation_sigma: .* valid number"),
         (
             {"ga": {"mutation_sigma": float("nan")}},
-            r"ga\.mutation_sigma: expected a finite",
+            r"ga\.mutation_sigma: .* finite number, got nan",
         ),
         ({"novelty": {"k": 0}}, r"novelty\.k"),
         ({"novelty": {"tie_break": "random"}}, r"novelty\.tie_break"),
         ({"novelty": {"archive_probability": -0.1}}, r"novelty\.archive_probability"),
-        ({"weighting": {"fitness_clusters": 1}}, r"weighting: fitness_clusters 1"),
+        (
+            {"weighting": {"fitness_clusters": 1}},
+            r"weighting\.fitness_clusters: .* got 1",
+        ),
         ({"weighting": {"feature_discretisation": "x"}}, r"weighting\.feature_disc"),
-        ({"weighting": {"delta": -1}}, r"^weighting: delta -1"),
-        ({"standardisation": {"clip": 0}}, r"^standardisation: clip 0"),
-        ({"characterisation": {"delta": 1}}, r"unknown key.*characterisation"),
+        ({"weighting": {"delta": -1}}, r"^weighting\.delta: .* got -1"),
+        ({"standardisation": {"clip": 0}}, r"^standardisation\.clip: .* got 0"),
+        ({"characterisation": {"delta": 1}}, r"^characterisation: unknown key"),
         ({"evaluation": {"trials": 0}}, r"evaluation\.trials"),
-        ({"treatment": "ns-xx"}, r"treatment: 'ns-xx' is not one of"),
-        ({"generations": 0}, r"generations: must be at least 1"),
+        ({"treatment": "ns-xx"}, r"treatment: Input should be 'fit'.*, got 'ns-xx'"),
+        ({"generations": 0}, r"generations: .* greater than or equal to 1, got 0"),
         ({"seed": -1}, r"seed"),
-        ({"ga": [1, 2]}, r"ga: expected a mapping"),
-        ({"task_config": 3}, r"task_config: expected a mapping"),
+        ({"ga": [1, 2]}, r"ga: Input should be a dictionary"),
+        ({"task_config": 3}, r"task_config: Input should be a valid dictionary"),
     ],
 )
 def test_bad_values_name_their_key(data: dict, message: str) -> None:
@@ -112,3 +125,50 @@ def test_files_that_are_not_configurations(tmp_path: Path) -> None:
     scalar.write_text("42\n")
     with pytest.raises(ConfigError, match="expected a mapping"):
         load_config(scalar)
+
+
+@pytest.mark.parametrize(
+    ("task_config", "message"),
+    [
+        (
+            {"max_steps": 300.5},
+            r"^task_config\.max_steps: Input should be a valid integer, got 300\.5$",
+        ),
+        ({"max_steps": "300"}, r"^task_config\.max_steps: .* integer, got '300'$"),
+        ({"max_steps": float("nan")}, r"^task_config\.max_steps: .*, got nan$"),
+        ({"max_speed": float("inf")}, r"^task_config\.max_speed: .* finite number"),
+        ({"max_speed": "1"}, r"^task_config\.max_speed: .* valid number, got '1'"),
+        (
+            {"max_stepz": 3},
+            r"^task_config\.max_stepz: unknown key; known keys: .*'max_steps'",
+        ),
+        ({"max_speed": 3.0}, r"^task_config\.max_speed: 3\.0 must be below"),
+    ],
+)
+def test_task_settings_are_checked_before_any_run(
+    task_config: dict, message: str
+) -> None:
+    with pytest.raises(ConfigError, match=message):
+        check_task_config("gate_escape", task_config)
+
+
+def test_integers_are_taken_for_numbers_but_nothing_else_is_coerced() -> None:
+    config = config_from_dict({"ga": {"mutation_sigma": 1}, "seed": 4})
+    assert config.ga.mutation_sigma == 1.0 and isinstance(
+        config.ga.mutation_sigma, float
+    )
+    for data in ({"seed": "4"}, {"seed": 4.0}, {"novelty": {"k": False}}):
+        with pytest.raises(ConfigError, match="valid integer"):
+            config_from_dict(data)
+    with pytest.raises(ConfigError, match="valid string"):
+        config_from_dict({"task": 3})
+
+
+def test_sections_are_keyword_only_and_document_every_field() -> None:
+    from sdbc_evolution.run.config import GaConfig
+    from sdbc_sim.settings import field_docs
+
+    with pytest.raises(ValueError):
+        GaConfig(200)  # type: ignore[misc]
+    for section in (ExperimentConfig, GaConfig):
+        assert all(field_docs(section).values()), section

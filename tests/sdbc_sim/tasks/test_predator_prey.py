@@ -288,14 +288,14 @@ def test_description_gives_the_papers_27_dimensions() -> None:
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
-        ({"predator_radius": -1.5}, "predator_radius must be positive"),
+        ({"predator_radius": -1.5}, "predator_radius: Input should be greater than 0"),
         ({"arena_size": 10.0}, "too small for its robots"),
         ({"capture_distance": 2.0}, "no capture could happen"),
         ({"predator_speed": 2.0}, "pass through each other"),
         ({"prey_margin": 60.0}, "prey_margin"),
         ({"predator_start_y": 50.0}, "predator_start_y"),
         ({"predator_spacing": 1.0}, "predator_spacing"),
-        ({"n_predators": 0}, "n_predators must be >= 1"),
+        ({"n_predators": 0}, "n_predators: Input should be greater than or equal to 1"),
         ({"flee_distance": float("nan")}, "flee_distance"),
     ],
 )

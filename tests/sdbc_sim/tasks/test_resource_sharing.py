@@ -325,14 +325,17 @@ def test_description_gives_the_papers_21_dimensions() -> None:
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
-        ({"robot_radius": -4.0}, "robot_radius must be positive"),
+        ({"robot_radius": -4.0}, "robot_radius: Input should be greater than 0"),
         ({"arena_size": 50.0}, "too small for its robots"),
         ({"arena_size": 20.0}, "too small for its robots"),
         ({"station_radius": 3.0}, "station_radius"),
         ({"station_radius": 8.0}, "could hold two robots"),
         ({"initial_energy": 600.0}, "initial_energy"),
         ({"min_energy_drain": 3.0}, "max_energy_drain"),
-        ({"charge_delay": -1}, "charge_delay must be >= 0"),
+        (
+            {"charge_delay": -1},
+            "charge_delay: Input should be greater than or equal to 0",
+        ),
         ({"max_speed": 5.0}, "pass through each other"),
         ({"start_separation": 6.0}, "start_separation"),
         ({"characterisation_interval": 0}, "characterisation_interval"),

@@ -19,21 +19,30 @@ Example::
 from __future__ import annotations
 
 import dataclasses
-import math
-import types
-import typing
-from dataclasses import dataclass, field
+from dataclasses import field
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import yaml
+from sdbc_sim.settings import (
+    Field,
+    Fraction,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    SettingsError,
+    check,
+    load,
+    settings,
+    to_plain,
+)
 
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 
 
-class ConfigError(ValueError):
+class ConfigError(SettingsError):
     """A configuration that cannot run; the message names the offending key."""
 
 
@@ -67,132 +76,92 @@ QUICKSTART_REEVALUATION = 20
 """Re-evaluation trials of each generation's best in the quick-start experiment."""
 
 
-@dataclass(frozen=True)
+@settings
 class GaConfig:
     """The generational GA."""
 
-    population_size: int = 200
+    population_size: Annotated[int, Field(ge=2)] = 200
     """Individuals per generation."""
-    tournament_size: int = 5
+    tournament_size: PositiveInt = 5
     """Contestants per tournament when choosing a parent."""
-    elites: int = 5
+    elites: NonNegativeInt = 5
     """Best individuals copied unchanged into the next generation (and evaluated
     again there in fresh trials)."""
-    mutation_sigma: float = 0.5
+    mutation_sigma: PositiveFloat = 0.5
     """Standard deviation of the Gaussian perturbation of a mutating gene."""
-    mutation_probability: float = 0.05
+    mutation_probability: Fraction = 0.05
     """Chance that each gene mutates."""
     gene_min: float = -1.0
     """Lower bound of every gene (network weight)."""
     gene_max: float = 1.0
     """Upper bound of every gene."""
-    max_redraws: int = 100
+    max_redraws: PositiveInt = 100
     """Out-of-bounds mutation draws allowed per gene before a uniform value in the
     bounds is taken instead (ECJ's default)."""
 
     def __post_init__(self) -> None:
-        _check(self.population_size >= 2, "ga.population_size", "must be at least 2")
-        _check(
-            1 <= self.tournament_size <= self.population_size,
-            "ga.tournament_size",
+        check(
+            self.tournament_size <= self.population_size,
+            "tournament_size",
             f"must be in [1, population_size={self.population_size}]",
         )
-        _check(
-            0 <= self.elites < self.population_size,
-            "ga.elites",
+        check(
+            self.elites < self.population_size,
+            "elites",
             f"must be in [0, population_size={self.population_size})",
         )
-        _check(
-            math.isfinite(self.mutation_sigma) and self.mutation_sigma > 0,
-            "ga.mutation_sigma",
-            "must be positive",
+        check(
+            self.gene_min < self.gene_max,
+            "gene_min",
+            f"must be below gene_max={self.gene_max}",
         )
-        _check(
-            0.0 <= self.mutation_probability <= 1.0,
-            "ga.mutation_probability",
-            "must be in [0, 1]",
-        )
-        _check(
-            math.isfinite(self.gene_min)
-            and math.isfinite(self.gene_max)
-            and self.gene_min < self.gene_max,
-            "ga.gene_min",
-            f"must be finite and below ga.gene_max={self.gene_max}",
-        )
-        _check(self.max_redraws >= 1, "ga.max_redraws", "must be at least 1")
 
 
-@dataclass(frozen=True)
+@settings
 class NoveltyConfig:
     """The novelty metric, its archive and the (fitness, novelty) ranking."""
 
-    k: int = 15
+    k: PositiveInt = 15
     """Nearest neighbours averaged by the novelty metric."""
-    archive_probability: float = 0.03
+    archive_probability: Fraction = 0.03
     """Chance that each evaluated individual enters the archive."""
-    archive_size: int = 1000
+    archive_size: NonNegativeInt = 1000
     """Most archive entries; a random one is replaced when full."""
-    tie_break: str = "crowding"
+    tie_break: Literal["crowding", "fitness"] = "crowding"
     """Order inside a non-dominated front: "crowding" (NSGA-II crowding distance,
     the paper) or "fitness" (fitness normalised within the front, the authors'
     code)."""
 
-    def __post_init__(self) -> None:
-        _check(self.k >= 1, "novelty.k", "must be at least 1")
-        _check(
-            0.0 <= self.archive_probability <= 1.0,
-            "novelty.archive_probability",
-            "must be in [0, 1]",
-        )
-        _check(self.archive_size >= 0, "novelty.archive_size", "must be >= 0")
-        _check(
-            self.tie_break in ("crowding", "fitness"),
-            "novelty.tie_break",
-            "must be 'crowding' or 'fitness'",
-        )
 
-
-@dataclass(frozen=True)
+@settings
 class EvaluationConfig:
     """How individuals are evaluated."""
 
-    trials: int = 10
+    trials: PositiveInt = 10
     """Trials per individual per generation, each with fresh initial conditions."""
-    reevaluation_trials: int = 50
+    reevaluation_trials: NonNegativeInt = 50
     """Fresh trials in which each generation's best individual is re-evaluated for
     the reported curves; 0 disables re-evaluation."""
-    fitness_mean: str = "harmonic"
+    fitness_mean: Literal["harmonic", "arithmetic"] = "harmonic"
     """How a controller's fitness sums up its trials: "harmonic" (the authors'
     code; trials under 1e-4 count as 1e-4) or "arithmetic"."""
 
-    def __post_init__(self) -> None:
-        _check(self.trials >= 1, "evaluation.trials", "must be at least 1")
-        _check(
-            self.fitness_mean in ("harmonic", "arithmetic"),
-            "evaluation.fitness_mean",
-            "must be 'harmonic' or 'arithmetic'",
-        )
-        _check(
-            self.reevaluation_trials >= 0,
-            "evaluation.reevaluation_trials",
-            "must be >= 0",
-        )
 
-
-@dataclass(frozen=True)
+@settings
 class ExperimentConfig:
     """One evolutionary run: a task, a treatment, the GA's settings and a seed."""
 
-    task: str = "gate_escape"
+    task: Annotated[str, Field(min_length=1)] = "gate_escape"
     """Task name in the ``sdbc_sim.tasks`` registry."""
     task_config: dict[str, Any] = field(default_factory=dict)
-    """Overrides of the task's own configuration (passed to ``make_task``)."""
+    """Overrides of the task's own settings (checked against them by
+    :func:`check_task_config`)."""
     treatment: Treatment = Treatment.NS_SD_PLUS
     """Which of the four treatments drives selection."""
-    generations: int | None = None
+    generations: PositiveInt | None = None
     """Generations to run; None takes the task's default from
     :data:`DEFAULT_GENERATIONS`."""
-    seed: int = 0
+    seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
     """Seed of the run: everything the run does is a function of (config, seed)."""
     ga: GaConfig = field(default_factory=GaConfig)
     """The GA."""
@@ -206,20 +175,6 @@ class ExperimentConfig:
     """NS-SD+ weights: delta, discretisation, how often they are recomputed."""
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     """Trials and re-evaluation."""
-
-    def __post_init__(self) -> None:
-        _check(bool(self.task), "task", "must name a task")
-        try:
-            object.__setattr__(self, "treatment", Treatment(self.treatment))
-        except ValueError:
-            raise ConfigError(
-                f"treatment: {self.treatment!r} is not one of "
-                f"{[t.value for t in Treatment]}"
-            ) from None
-        _check(isinstance(self.task_config, dict), "task_config", "must be a mapping")
-        if self.generations is not None:
-            _check(self.generations >= 1, "generations", "must be at least 1")
-        _check(0 <= self.seed < 2**63, "seed", "must be in [0, 2^63)")
 
     @property
     def resolved_generations(self) -> int:
@@ -238,11 +193,38 @@ class ExperimentConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (YAML-ready) for this configuration."""
-        return _to_plain(self)
+        return to_plain(self)
 
     def replace(self, **changes: Any) -> ExperimentConfig:
-        """A copy with top-level fields changed, validated again."""
-        return dataclasses.replace(self, **changes)
+        """A copy with top-level fields changed, validated again.
+
+        Raises:
+            ConfigError: Naming the bad field.
+        """
+        try:
+            return dataclasses.replace(self, **changes)
+        except SettingsError as error:
+            raise _config_error(error) from None
+
+
+def check_task_config(task: str, task_config: dict[str, Any]) -> None:
+    """Checks ``task_config`` against the settings of ``task``.
+
+    Raises:
+        ConfigError: An unknown task, or a bad setting named as
+            ``task_config.NAME``.
+    """
+    from sdbc_sim.tasks import available_tasks, task_settings
+
+    tasks = available_tasks()
+    if task not in tasks:
+        raise ConfigError(
+            f"task: unknown task {task!r}; known tasks: {', '.join(sorted(tasks))}"
+        )
+    try:
+        task_settings(tasks[task], task_config)
+    except SettingsError as error:
+        raise _config_error(error.prefixed("task_config")) from None
 
 
 def quickstart_config() -> ExperimentConfig:
@@ -259,113 +241,20 @@ def quickstart_config() -> ExperimentConfig:
     )
 
 
-def _check(ok: bool, key: str, message: str) -> None:
-    if not ok:
-        raise ConfigError(f"{key}: {message}")
-
-
-def _to_plain(value: Any) -> Any:
-    if dataclasses.is_dataclass(value):
-        return {
-            f.name: _to_plain(getattr(value, f.name)) for f in dataclasses.fields(value)
-        }
-    if isinstance(value, Enum):
-        return value.value
-    if isinstance(value, dict):
-        return {str(k): _to_plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_to_plain(v) for v in value]
-    return value
-
-
-def _coerce(value: Any, annotation: Any, key: str) -> Any:
-    """Checks one YAML value against a field's type; returns it converted."""
-    origin = typing.get_origin(annotation)
-    if origin in (typing.Union, types.UnionType):
-        options = typing.get_args(annotation)
-        if value is None and type(None) in options:
-            return None
-        last: ConfigError | None = None
-        for option in options:
-            if option is type(None):
-                continue
-            try:
-                return _coerce(value, option, key)
-            except ConfigError as error:
-                last = error
-        assert last is not None
-        raise last
-    if origin is typing.Literal:
-        allowed = typing.get_args(annotation)
-        if value not in allowed:
-            raise ConfigError(f"{key}: {value!r} is not one of {list(allowed)}")
-        return value
-    if dataclasses.is_dataclass(annotation):
-        return _from_mapping(annotation, value, key)
-    if isinstance(annotation, type) and issubclass(annotation, Enum):
-        try:
-            return annotation(value)
-        except ValueError:
-            raise ConfigError(
-                f"{key}: {value!r} is not one of {[e.value for e in annotation]}"
-            ) from None
-    if annotation is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(f"{key}: expected true or false, got {value!r}")
-        return value
-    if annotation is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{key}: expected an integer, got {value!r}")
-        return value
-    if annotation is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{key}: expected a number, got {value!r}")
-        if not math.isfinite(value):
-            raise ConfigError(f"{key}: expected a finite number, got {value!r}")
-        return float(value)
-    if annotation is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"{key}: expected a string, got {value!r}")
-        return value
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise ConfigError(f"{key}: expected a mapping, got {value!r}")
-        return dict(value)
-    raise ConfigError(f"{key}: unsupported field type {annotation!r}")
-
-
-def _from_mapping(cls: type, data: Any, prefix: str) -> Any:
-    if data is None:
-        data = {}
-    where = prefix or "configuration"
-    if not isinstance(data, dict):
-        raise ConfigError(f"{where}: expected a mapping, got {data!r}")
-    hints = typing.get_type_hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(str(k) for k in data if k not in names)
-    if unknown:
-        dotted = [f"{prefix}.{k}" if prefix else k for k in unknown]
-        raise ConfigError(
-            f"unknown key(s) {dotted}; known keys of {where}: {sorted(names)}"
-        )
-    values = {}
-    for name, value in data.items():
-        key = f"{prefix}.{name}" if prefix else name
-        values[name] = _coerce(value, hints[name], key)
-    try:
-        return cls(**values)
-    except ConfigError:
-        raise
-    except (TypeError, ValueError) as error:
-        message = str(error)
-        if not message.startswith(f"{where}:"):
-            message = f"{where}: {message}"
-        raise ConfigError(message) from None
+def _config_error(error: SettingsError) -> ConfigError:
+    return ConfigError(str(error), error.problems)
 
 
 def config_from_dict(data: Any) -> ExperimentConfig:
-    """Builds and validates an :class:`ExperimentConfig` from plain data."""
-    return _from_mapping(ExperimentConfig, data, "")
+    """Builds and validates an :class:`ExperimentConfig` from plain data.
+
+    Raises:
+        ConfigError: Naming every bad key by its dotted path.
+    """
+    try:
+        return load(ExperimentConfig, data)
+    except SettingsError as error:
+        raise _config_error(error) from None
 
 
 def load_config(path: str | Path) -> ExperimentConfig:

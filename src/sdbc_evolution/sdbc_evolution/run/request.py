@@ -16,10 +16,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sdbc_sim.settings import SettingsError
+
 from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
+    check_task_config,
     load_config,
     quickstart_config,
 )
@@ -65,7 +68,8 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
     filled in.
 
     Raises:
-        ConfigError: A bad file or override, or ``resume`` without ``out``.
+        ConfigError: A bad file, override or task setting (named as
+            ``task_config.NAME``), or ``resume`` without ``out``.
         CheckpointError: ``resume`` where ``out`` holds no run.
     """
     out = request.out
@@ -86,18 +90,26 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
             changes[name] = value
     if request.task_config is not None:
         changes["task_config"] = dict(request.task_config)
-    if request.population is not None:
-        changes["ga"] = dataclasses.replace(
-            config.ga, population_size=request.population
-        )
-    if request.trials is not None:
-        changes["evaluation"] = dataclasses.replace(
-            config.evaluation, trials=request.trials
-        )
+    for section, key, value in (
+        ("ga", "population_size", request.population),
+        ("evaluation", "trials", request.trials),
+    ):
+        if value is None:
+            continue
+        try:
+            changes[section] = dataclasses.replace(
+                getattr(config, section), **{key: value}
+            )
+        except SettingsError as error:
+            problem = error.prefixed(section)
+            raise ConfigError(str(problem), problem.problems) from None
     try:
-        return config.replace(**changes).resolved()
+        config = config.replace(**changes).resolved()
     except (TypeError, ValueError) as error:
         raise ConfigError(str(error)) from None
+    # The task's own settings too, so that a bad one stops before any run.
+    check_task_config(config.task, config.task_config)
+    return config
 
 
 def default_out(config: ExperimentConfig) -> Path:

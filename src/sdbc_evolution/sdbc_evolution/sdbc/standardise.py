@@ -15,31 +15,21 @@ dimension).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from sdbc_sim.settings import Field, PositiveFloat, settings
 
 
-@dataclass(frozen=True)
+@settings
 class StandardisationSettings:
-    """How raw characterisations are standardised.
+    """How raw characterisations are standardised."""
 
-    Attributes:
-        clip: c, standardised values are clipped to [-c, c]; docs/method.md: 3.
-        ddof: Delta degrees of freedom of sigma_k: 1 for the sample standard
-            deviation as in the authors' code (the paper is silent), 0 for the
-            population one.
-    """
-
-    clip: float = 3.0
-    ddof: int = 1
-
-    def __post_init__(self) -> None:
-        if not np.isfinite(self.clip) or self.clip <= 0:
-            raise ValueError(
-                f"standardisation: clip {self.clip} must be finite and > 0"
-            )
-        if self.ddof not in (0, 1):
-            raise ValueError(f"standardisation: ddof {self.ddof} must be 0 or 1")
+    clip: PositiveFloat = 3.0
+    """c, standardised values are clipped to [-c, c]; docs/method.md: 3."""
+    ddof: Annotated[int, Field(ge=0, le=1)] = 1
+    """Delta degrees of freedom of sigma_k: 1 for the sample standard deviation as
+    in the authors' code (the paper is silent), 0 for the population one."""
 
 
 @dataclass(frozen=True)

@@ -25,57 +25,34 @@ Weights are recomputed every generation, or every n generations
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
+from sdbc_sim.settings import Field, NonNegativeFloat, PositiveInt, settings
 
 Discretisation = Literal["equal_width", "kmeans"]
 DISCRETISATIONS: tuple[str, ...] = ("equal_width", "kmeans")
 
 
-@dataclass(frozen=True)
+@settings
 class WeightingSettings:
-    """How NS-SD+ weights its dimensions.
+    """How NS-SD+ weights its dimensions."""
 
-    Attributes:
-        delta: The least weight of a dimension; the paper: 0.25.
-        fitness_clusters: Fitness is discretised into this many k-means clusters;
-            the authors: 10.
-        feature_bins: Each feature is discretised into this many classes.
-        feature_discretisation: "equal_width" bins over the population's range, or
-            "kmeans" clusters as for fitness.
-        kmeans_restarts: k-means runs from this many initialisations and keeps the
-            best (scikit-learn's n_init).
-        update_every: Weights are recomputed every this many generations; the
-            paper: every generation (1).
-    """
-
-    delta: float = 0.25
-    fitness_clusters: int = 10
-    feature_bins: int = 10
+    delta: NonNegativeFloat = 0.25
+    """The least weight of a dimension; the paper: 0.25."""
+    fitness_clusters: Annotated[int, Field(ge=2)] = 10
+    """Fitness is discretised into this many k-means clusters; the authors: 10."""
+    feature_bins: Annotated[int, Field(ge=2)] = 10
+    """Each feature is discretised into this many classes."""
     feature_discretisation: Discretisation = "equal_width"
-    kmeans_restarts: int = 10
-    update_every: int = 1
-
-    def __post_init__(self) -> None:
-        if not math.isfinite(self.delta) or self.delta < 0:
-            raise ValueError(f"weighting: delta {self.delta} must be finite and >= 0")
-        for name in ("fitness_clusters", "feature_bins"):
-            if getattr(self, name) < 2:
-                raise ValueError(
-                    f"weighting: {name} {getattr(self, name)} must be >= 2"
-                )
-        if self.feature_discretisation not in DISCRETISATIONS:
-            raise ValueError(
-                f"weighting: unknown feature_discretisation "
-                f"{self.feature_discretisation!r}; known: {', '.join(DISCRETISATIONS)}"
-            )
-        for name in ("kmeans_restarts", "update_every"):
-            if getattr(self, name) < 1:
-                raise ValueError(
-                    f"weighting: {name} {getattr(self, name)} must be >= 1"
-                )
+    """"equal_width" bins over the population's range, or "kmeans" clusters as for
+    fitness."""
+    kmeans_restarts: PositiveInt = 10
+    """k-means runs from this many initialisations and keeps the best
+    (scikit-learn's n_init)."""
+    update_every: PositiveInt = 1
+    """Weights are recomputed every this many generations; the paper: every
+    generation (1)."""
 
 
 Seed = int | np.random.Generator | None

@@ -23,18 +23,27 @@ Example::
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import yaml
+from sdbc_sim.settings import (
+    Field,
+    PositiveInt,
+    SettingsError,
+    check,
+    load,
+    settings,
+    to_plain,
+)
 
 from sdbc_evolution.run.config import (
     DEFAULT_GENERATIONS,
     ConfigError,
     ExperimentConfig,
     Treatment,
+    check_task_config,
     config_from_dict,
 )
 
@@ -48,27 +57,27 @@ STUDY_KEYS = ("task", "treatment", "seed", "generations", "task_config")
 """Experiment keys the study sets per run, so a preset's ``experiment`` may not."""
 
 
-class PresetError(ValueError):
+class PresetError(SettingsError):
     """A preset that cannot run; the message names the offending key."""
 
 
-@dataclass(frozen=True)
+@settings
 class StudyPreset:
     """A replication study: tasks x treatments x runs, and the settings of each run."""
 
-    name: str
+    name: Annotated[str, Field(min_length=1)]
     """Name of the preset (``smoke``, ``local``, ``paper`` or a user's own)."""
     description: str = ""
     """What the preset is for, in a sentence or two."""
-    runs: int = PAPER_RUNS
+    runs: PositiveInt = PAPER_RUNS
     """Independent runs per treatment and task."""
-    seed: int = 0
+    seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
     """Study seed: every run's seed derives from it, its task, treatment and index."""
-    tasks: tuple[str, ...] = tuple(DEFAULT_GENERATIONS)
+    tasks: Annotated[tuple[str, ...], Field(min_length=1)] = tuple(DEFAULT_GENERATIONS)
     """Tasks of the study, in the order they run."""
-    treatments: tuple[Treatment, ...] = tuple(Treatment)
+    treatments: Annotated[tuple[Treatment, ...], Field(min_length=1)] = tuple(Treatment)
     """Treatments compared on every task."""
-    generations: dict[str, int] = field(default_factory=dict)
+    generations: dict[str, PositiveInt] = field(default_factory=dict)
     """Generations per task; a task left out takes the paper's number."""
     task_config: dict[str, dict[str, Any]] = field(default_factory=dict)
     """Settings of each task that differ from its defaults."""
@@ -77,37 +86,17 @@ class StudyPreset:
     ...; an ``sdbc-evolve`` configuration without the keys in :data:`STUDY_KEYS`)."""
 
     def __post_init__(self) -> None:
-        _check(bool(self.name), "name", "must not be empty")
-        _check(
-            isinstance(self.runs, int) and self.runs >= 1, "runs", "must be at least 1"
+        check(len(set(self.tasks)) == len(self.tasks), "tasks", "has duplicates")
+        check(
+            len(set(self.treatments)) == len(self.treatments),
+            "treatments",
+            "has duplicates",
         )
-        _check(
-            isinstance(self.seed, int) and 0 <= self.seed < 2**63,
-            "seed",
-            "must be an integer in [0, 2^63)",
-        )
-        _check(len(self.tasks) >= 1, "tasks", "must name at least one task")
-        _check(len(set(self.tasks)) == len(self.tasks), "tasks", "has duplicates")
-        try:
-            treatments = tuple(Treatment(t) for t in self.treatments)
-        except ValueError as error:
-            raise PresetError(
-                f"treatments: {error}; known: {[t.value for t in Treatment]}"
-            ) from None
-        _check(len(treatments) >= 1, "treatments", "must name at least one")
-        _check(len(set(treatments)) == len(treatments), "treatments", "has duplicates")
-        object.__setattr__(self, "treatments", treatments)
         for key in ("generations", "task_config"):
             extra = sorted(set(getattr(self, key)) - set(self.tasks))
-            _check(not extra, key, f"names tasks not in the study: {extra}")
-        for task, generations in self.generations.items():
-            _check(
-                isinstance(generations, int) and generations >= 1,
-                f"generations.{task}",
-                "must be an integer >= 1",
-            )
+            check(not extra, key, f"names tasks not in the study: {extra}")
         reserved = sorted(set(self.experiment) & set(STUDY_KEYS))
-        _check(
+        check(
             not reserved,
             "experiment",
             f"may not set {reserved}: the study sets them per run "
@@ -146,19 +135,15 @@ class StudyPreset:
             raise PresetError(f"preset {self.name!r}, task {task}: {error}") from None
 
     def validate(self) -> None:
-        """Builds every run's configuration and every task once, so that bad
-        settings fail now, before any run starts."""
-        from sdbc_evolution.run.experiment import task_spec
-
+        """Builds every run's configuration and checks every task's settings once,
+        so that bad settings fail now, before any run starts."""
         for task in self.tasks:
             for treatment in self.treatments:
                 config = self.experiment_config(task, treatment, 0)
             try:
-                task_spec(config).build()
-            except (TypeError, ValueError) as error:
-                raise PresetError(
-                    f"preset {self.name!r}, task_config.{task}: {error}"
-                ) from None
+                check_task_config(task, config.task_config)
+            except ConfigError as error:
+                raise PresetError(f"preset {self.name!r}: {error}") from None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (YAML-ready)."""
@@ -171,7 +156,7 @@ class StudyPreset:
             "treatments": [t.value for t in self.treatments],
             "generations": {t: self.generations_of(t) for t in self.tasks},
             "task_config": {t: dict(c) for t, c in self.task_config.items()},
-            "experiment": _plain(self.experiment),
+            "experiment": to_plain(self.experiment),
         }
 
     def sizes(self) -> dict[str, Any]:
@@ -187,50 +172,16 @@ class StudyPreset:
         }
 
 
-def _check(ok: bool, key: str, message: str) -> None:
-    if not ok:
-        raise PresetError(f"{key}: {message}")
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value
-
-
 def preset_from_dict(data: Any, where: str = "preset") -> StudyPreset:
-    """Builds and validates a preset from plain data (a parsed YAML file)."""
-    if not isinstance(data, dict):
-        raise PresetError(f"{where}: expected a mapping, got {data!r}")
-    names = {f.name for f in dataclasses.fields(StudyPreset)}
-    unknown = sorted(str(k) for k in data if k not in names)
-    if unknown:
-        raise PresetError(f"{where}: unknown key(s) {unknown}; known: {sorted(names)}")
-    values = dict(data)
-    for key in ("tasks", "treatments"):
-        if key in values:
-            if not isinstance(values[key], list) or not all(
-                isinstance(v, str) for v in values[key]
-            ):
-                raise PresetError(f"{where}: {key}: expected a list of names")
-            values[key] = tuple(values[key])
-    for key in ("generations", "task_config", "experiment"):
-        if key in values and not isinstance(values[key], dict):
-            raise PresetError(f"{where}: {key}: expected a mapping")
-    for task, settings in values.get("task_config", {}).items():
-        if not isinstance(settings, dict):
-            raise PresetError(f"{where}: task_config.{task}: expected a mapping")
-    for key in ("name", "description"):
-        if key in values and not isinstance(values[key], str):
-            raise PresetError(f"{where}: {key}: expected a string")
+    """Builds and validates a preset from plain data (a parsed YAML file).
+
+    Raises:
+        PresetError: Naming every bad key, or the first run that cannot be made.
+    """
     try:
-        preset = StudyPreset(**values)
-    except PresetError as error:
-        raise PresetError(f"{where}: {error}") from None
-    except TypeError as error:
-        raise PresetError(f"{where}: {error}") from None
+        preset = load(StudyPreset, data)
+    except SettingsError as error:
+        raise PresetError(f"{where}: {error}", error.problems) from None
     preset.validate()
     return preset
 

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from collections.abc import Mapping
 from functools import cache
 from typing import Any
 
+from sdbc_sim.settings import SettingsError, load
 from sdbc_sim.task import Task
 
 
@@ -28,7 +30,8 @@ def make_task(name: str, **overrides: Any) -> Task:
     """The task called ``name`` with its default settings except ``overrides``.
 
     Raises:
-        ValueError: For an unknown task name, an unknown setting or a bad value.
+        ValueError: For an unknown task name.
+        SettingsError: For an unknown setting or a bad value, naming it.
     """
     tasks = available_tasks()
     if name not in tasks:
@@ -36,11 +39,18 @@ def make_task(name: str, **overrides: Any) -> Task:
             f"unknown task {name!r}; known tasks: {', '.join(sorted(tasks))}"
         )
     task_class = tasks[name]
-    fields = set(task_class.config_class.__dataclass_fields__)
-    unknown = sorted(set(overrides) - fields)
-    if unknown:
-        raise ValueError(
-            f"task {name!r}: unknown settings {unknown}; known: "
-            f"{', '.join(sorted(fields))}"
-        )
-    return task_class(task_class.config_class(**overrides))
+    try:
+        settings = task_settings(task_class, overrides)
+    except SettingsError as error:
+        raise SettingsError(f"task {name!r}: {error}", error.problems) from None
+    return task_class(settings)
+
+
+def task_settings(task_class: type[Task], overrides: Mapping[str, Any]) -> Any:
+    """The settings of ``task_class``: its defaults except ``overrides``, checked.
+
+    Raises:
+        SettingsError: Naming each unknown setting or bad value (its paths are the
+            settings' names: prefix them with where they came from).
+    """
+    return load(task_class.config_class, overrides)

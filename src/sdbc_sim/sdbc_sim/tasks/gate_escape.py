@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -65,125 +66,87 @@ from sdbc_sim.sensors import (
     robot_sum,
     sector_minimum,
 )
+from sdbc_sim.settings import (
+    Fraction,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    check,
+    settings,
+)
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
-FITNESS_FUNCTIONS = ("paper", "mase")
 _MAX_START_DRAWS = 100_000
 """Angle draws per robot before a start position counts as impossible."""
 
 
-@dataclass(frozen=True)
+@settings
 class GateEscapeConfig:
-    """Settings of the gate escape task; defaults from docs/reference-setup.md.
+    """Settings of the gate escape task; defaults from docs/reference-setup.md."""
 
-    Attributes:
-        arena_size: Side of the square arena.
-        gate_width: Width of the gate opening, centred in the left wall.
-        n_robots: N, robots in the team.
-        robot_radius: Radius of a robot.
-        max_speed: Top speed, units per step.
-        max_turn: Largest turn, radians per step.
-        start_spacing: Robot i starts (i + 1) x this from the gate centre.
-        gate_sensor_range: Range of the gate distance and bearing sensor.
-        neighbour_range: Range (edge to edge) of the neighbour count and arcs.
-        n_robot_arcs: Robot-sensing arcs.
-        wall_ray_range: Length of a wall-sensing ray, from the robot's edge.
-        n_wall_rays: Wall-sensing rays.
-        n_hidden: Hidden units of the network.
-        stop_threshold: Output o2 above this stops the robot.
-        gate_closing_steps: Steps from the first escape until the gate is closed.
-        max_steps: tau, the longest trial.
-        fitness: "paper" for F_g = (g + t / tau) / (1 + N), "mase" for the authors'
-            code's w g / N + (1 - w) (1 - t_open / tau).
-        mase_escape_weight: w of the "mase" fitness.
-    """
-
-    arena_size: float = 200.0
-    gate_width: float = 25.0
-    n_robots: int = 4
-    robot_radius: float = 2.5
-    max_speed: float = 1.0
-    max_turn: float = 1.57
-    start_spacing: float = 49.375
-    gate_sensor_range: float = 50.0
-    neighbour_range: float = 25.0
-    n_robot_arcs: int = 4
-    wall_ray_range: float = 5.0
-    n_wall_rays: int = 4
-    n_hidden: int = 7
-    stop_threshold: float = 0.5
-    gate_closing_steps: int = 75
-    max_steps: int = 1000
-    fitness: str = "paper"
-    mase_escape_weight: float = 0.8
+    arena_size: PositiveFloat = 200.0
+    """Side of the square arena."""
+    gate_width: PositiveFloat = 25.0
+    """Width of the gate opening, centred in the left wall."""
+    n_robots: PositiveInt = 4
+    """N, robots in the team."""
+    robot_radius: PositiveFloat = 2.5
+    """Radius of a robot."""
+    max_speed: PositiveFloat = 1.0
+    """Top speed, units per step."""
+    max_turn: PositiveFloat = 1.57
+    """Largest turn, radians per step."""
+    start_spacing: PositiveFloat = 49.375
+    """Robot i starts (i + 1) x this from the gate centre."""
+    gate_sensor_range: PositiveFloat = 50.0
+    """Range of the gate distance and bearing sensor."""
+    neighbour_range: PositiveFloat = 25.0
+    """Range (edge to edge) of the neighbour count and arcs."""
+    n_robot_arcs: PositiveInt = 4
+    """Robot-sensing arcs."""
+    wall_ray_range: PositiveFloat = 5.0
+    """Length of a wall-sensing ray, from the robot's edge."""
+    n_wall_rays: PositiveInt = 4
+    """Wall-sensing rays."""
+    n_hidden: PositiveInt = 7
+    """Hidden units of the network."""
+    stop_threshold: Fraction = 0.5
+    """Output o2 above this stops the robot."""
+    gate_closing_steps: NonNegativeInt = 75
+    """Steps from the first escape until the gate is closed."""
+    max_steps: PositiveInt = 1000
+    """tau, the longest trial."""
+    fitness: Literal["paper", "mase"] = "paper"
+    """"paper" for F_g = (g + t / tau) / (1 + N), "mase" for the authors' code's
+    w g / N + (1 - w) (1 - t_open / tau)."""
+    mase_escape_weight: Fraction = 0.8
+    """w of the "mase" fitness."""
 
     def __post_init__(self) -> None:
-        for name in (
-            "arena_size",
-            "gate_width",
-            "robot_radius",
-            "max_speed",
-            "max_turn",
-            "start_spacing",
-            "gate_sensor_range",
-            "neighbour_range",
-            "wall_ray_range",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"gate_escape: {name} must be positive, got {v}")
-        for name in (
-            "n_robots",
-            "n_robot_arcs",
-            "n_wall_rays",
-            "n_hidden",
-            "max_steps",
-        ):
-            if getattr(self, name) < 1:
-                raise ValueError(
-                    f"gate_escape: {name} must be >= 1, got {getattr(self, name)}"
-                )
-        if self.gate_closing_steps < 0:
-            raise ValueError(
-                f"gate_escape: gate_closing_steps must be >= 0, got "
-                f"{self.gate_closing_steps}"
-            )
-        if not 0.0 <= self.stop_threshold <= 1.0:
-            raise ValueError(
-                "gate_escape: stop_threshold must be in [0, 1], got "
-                f"{self.stop_threshold}"
-            )
-        if self.fitness not in FITNESS_FUNCTIONS:
-            raise ValueError(
-                f"gate_escape: unknown fitness {self.fitness!r}; known: "
-                f"{', '.join(FITNESS_FUNCTIONS)}"
-            )
-        if not 0.0 <= self.mase_escape_weight <= 1.0:
-            raise ValueError(
-                "gate_escape: mase_escape_weight must be in [0, 1], got "
-                f"{self.mase_escape_weight}"
-            )
         r, s = self.robot_radius, self.arena_size
-        if self.max_speed >= r:
-            raise ValueError(
-                f"gate_escape: max_speed {self.max_speed} must be below the robot "
-                f"radius {r}, or robots could pass through walls in one step"
-            )
-        if self.gate_width <= 2.0 * r or self.gate_width >= s:
-            raise ValueError(
-                f"gate_escape: gate_width {self.gate_width} must lie between a robot's "
-                f"diameter {2.0 * r} and the arena size {s}"
-            )
+        check(
+            self.max_speed < r,
+            "max_speed",
+            f"{self.max_speed} must be below the robot radius {r}, or robots could "
+            "pass through walls in one step",
+        )
+        check(
+            2.0 * r < self.gate_width < s,
+            "gate_width",
+            f"{self.gate_width} must lie between a robot's diameter {2.0 * r} and "
+            f"the arena size {s}",
+        )
         farthest = math.hypot(s - r, s / 2.0 - r)
         outer = self.n_robots * self.start_spacing
-        if self.start_spacing < 2.0 * r or outer > farthest:
-            raise ValueError(
-                f"gate_escape: the arena is too small for its robots: {self.n_robots} "
-                f"robots of radius {r} on rings {self.start_spacing} apart need rings "
-                f"at least {2.0 * r} apart, the outermost ({outer}) within "
-                f"{farthest:.3f} of the gate in a {s} arena"
-            )
+        check(
+            self.start_spacing >= 2.0 * r and outer <= farthest,
+            "start_spacing",
+            f"the arena is too small for its robots: {self.n_robots} robots of "
+            f"radius {r} on rings {self.start_spacing} apart need rings at least "
+            f"{2.0 * r} apart, the outermost ({outer}) within {farthest:.3f} of the "
+            f"gate in a {s} arena",
+        )
 
     @property
     def n_inputs(self) -> int:

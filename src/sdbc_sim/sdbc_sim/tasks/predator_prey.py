@@ -71,112 +71,92 @@ import numpy as np
 
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import bearing, norm, robot_sum, wrap_angle
+from sdbc_sim.settings import PositiveFloat, PositiveInt, check, settings
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
 
-@dataclass(frozen=True)
+@settings
 class PredatorPreyConfig:
-    """Settings of the predator-prey task; defaults from docs/reference-setup.md.
+    """Settings of the predator-prey task; defaults from docs/reference-setup.md."""
 
-    Attributes:
-        arena_size: Side of the square chase zone [0, size]^2 (open: no walls).
-        n_predators: Predators in the team.
-        predator_radius: Radius of a predator.
-        prey_radius: Radius of the prey.
-        predator_speed: Top speed of a predator, units per step.
-        max_turn: Largest turn of a predator, radians per step.
-        predator_spacing: Distance between neighbouring predators at the start.
-        predator_start_y: The predators start on this line, facing +y.
-        prey_margin: The prey starts uniform in [margin, size - margin]^2.
-        prey_speed: Speed of a fleeing prey, units per step.
-        flee_distance: The prey flees predators closer than this, edge to edge.
-        capture_distance: A predator centre this close to the prey's captures it.
-        n_hidden: Hidden units of the network.
-        max_steps: tau, the longest trial.
-    """
-
-    arena_size: float = 100.0
-    n_predators: int = 3
-    predator_radius: float = 1.5
-    prey_radius: float = 1.5
-    predator_speed: float = 0.5
-    max_turn: float = 1.57
-    predator_spacing: float = 5.0
+    arena_size: PositiveFloat = 100.0
+    """Side of the square chase zone [0, size]^2 (open: no walls)."""
+    n_predators: PositiveInt = 3
+    """Predators in the team."""
+    predator_radius: PositiveFloat = 1.5
+    """Radius of a predator."""
+    prey_radius: PositiveFloat = 1.5
+    """Radius of the prey."""
+    predator_speed: PositiveFloat = 0.5
+    """Top speed of a predator, units per step."""
+    max_turn: PositiveFloat = 1.57
+    """Largest turn of a predator, radians per step."""
+    predator_spacing: PositiveFloat = 5.0
+    """Distance between neighbouring predators at the start."""
     predator_start_y: float = 0.0
+    """The predators start on this line, facing +y."""
     prey_margin: float = 20.0
-    prey_speed: float = 0.75
-    flee_distance: float = 5.0
-    capture_distance: float = 4.0
-    n_hidden: int = 5
-    max_steps: int = 600
+    """The prey starts uniform in [margin, size - margin]^2."""
+    prey_speed: PositiveFloat = 0.75
+    """Speed of a fleeing prey, units per step."""
+    flee_distance: PositiveFloat = 5.0
+    """The prey flees predators closer than this, edge to edge."""
+    capture_distance: PositiveFloat = 4.0
+    """A predator centre this close to the prey's captures it."""
+    n_hidden: PositiveInt = 5
+    """Hidden units of the network."""
+    max_steps: PositiveInt = 600
+    """tau, the longest trial."""
 
     def __post_init__(self) -> None:
-        for name in (
-            "arena_size",
-            "predator_radius",
-            "prey_radius",
-            "predator_speed",
-            "max_turn",
-            "predator_spacing",
-            "prey_speed",
-            "flee_distance",
-            "capture_distance",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"predator_prey: {name} must be positive, got {v}")
-        for name in ("prey_margin", "predator_start_y"):
-            v = getattr(self, name)
-            if not math.isfinite(v):
-                raise ValueError(f"predator_prey: {name} must be finite, got {v}")
-        for name in ("n_predators", "n_hidden", "max_steps"):
-            if getattr(self, name) < 1:
-                raise ValueError(
-                    f"predator_prey: {name} must be >= 1, got {getattr(self, name)}"
-                )
         for speed, radius in (
             ("predator_speed", "predator_radius"),
             ("prey_speed", "prey_radius"),
         ):
-            if getattr(self, speed) >= getattr(self, radius):
-                raise ValueError(
-                    f"predator_prey: {speed} {getattr(self, speed)} must be below "
-                    f"{radius} {getattr(self, radius)}, or bodies could pass through "
-                    "each other in one step"
-                )
+            check(
+                getattr(self, speed) < getattr(self, radius),
+                speed,
+                f"{getattr(self, speed)} must be below {radius} "
+                f"{getattr(self, radius)}, or bodies could pass through each other "
+                "in one step",
+            )
         touch = self.predator_radius + self.prey_radius
-        if self.capture_distance < touch:
-            raise ValueError(
-                f"predator_prey: capture_distance {self.capture_distance} is below "
-                f"predator_radius + prey_radius {touch}: no capture could happen"
-            )
-        if self.predator_spacing < 2.0 * self.predator_radius:
-            raise ValueError(
-                f"predator_prey: predator_spacing {self.predator_spacing} is below a "
-                f"predator's diameter {2.0 * self.predator_radius}"
-            )
+        check(
+            self.capture_distance >= touch,
+            "capture_distance",
+            f"{self.capture_distance} is below predator_radius + prey_radius "
+            f"{touch}: no capture could happen",
+        )
+        check(
+            self.predator_spacing >= 2.0 * self.predator_radius,
+            "predator_spacing",
+            f"{self.predator_spacing} is below a predator's diameter "
+            f"{2.0 * self.predator_radius}",
+        )
         s, m = self.arena_size, self.prey_margin
         row = (
             self.n_predators - 1
         ) * self.predator_spacing + 2.0 * self.predator_radius
-        if row > s:
-            raise ValueError(
-                f"predator_prey: the arena is too small for its robots: "
-                f"{self.n_predators} predators {self.predator_spacing} apart span "
-                f"{row}, more than arena_size {s}"
-            )
-        if not self.prey_radius <= m <= s / 2.0:
-            raise ValueError(
-                f"predator_prey: prey_margin {m} must lie in [prey_radius "
-                f"{self.prey_radius}, arena_size / 2 = {s / 2.0}]"
-            )
+        check(
+            row <= s,
+            "arena_size",
+            f"the arena is too small for its robots: {self.n_predators} predators "
+            f"{self.predator_spacing} apart span {row}, more than arena_size {s}",
+        )
+        check(
+            self.prey_radius <= m <= s / 2.0,
+            "prey_margin",
+            f"{m} must lie in [prey_radius {self.prey_radius}, arena_size / 2 = "
+            f"{s / 2.0}]",
+        )
         y = self.predator_start_y
-        if m - touch < y < s - m + touch:
-            raise ValueError(
-                f"predator_prey: predator_start_y {y} lets the prey start on a "
-                f"predator: the prey's start box spans y in [{m}, {s - m}]"
-            )
+        check(
+            not m - touch < y < s - m + touch,
+            "predator_start_y",
+            f"{y} lets the prey start on a predator: the prey's start box spans y "
+            f"in [{m}, {s - m}]",
+        )
 
     @property
     def n_inputs(self) -> int:

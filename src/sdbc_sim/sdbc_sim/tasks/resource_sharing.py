@@ -121,6 +121,15 @@ from sdbc_sim.sensors import (
     robot_sum,
     sector_minimum,
 )
+from sdbc_sim.settings import (
+    Fraction,
+    NonNegativeFloat,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    check,
+    settings,
+)
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
@@ -128,180 +137,122 @@ _MAX_START_DRAWS = 100_000
 """Position draws per robot before a start counts as impossible."""
 
 
-@dataclass(frozen=True)
+@settings
 class ResourceSharingConfig:
-    """Settings of the resource sharing task; defaults from docs/reference-setup.md.
+    """Settings of the resource sharing task; defaults from docs/reference-setup.md."""
 
-    Attributes:
-        arena_size: Side of the square arena (open: no walls).
-        n_robots: N, robots in the team.
-        robot_radius: Radius of a robot.
-        max_speed: Top speed, units per step.
-        max_turn: Largest turn, radians per step.
-        start_separation: Least centre distance at the start between two robots,
-            and between a robot and the station centre.
-        station_radius: Radius of the charging station at the arena centre.
-        max_energy: e_max, the most energy a robot can hold.
-        initial_energy: Energy of every robot at the start (e_max in
-            docs/reference-setup.md).
-        min_energy_drain: Energy spent per step by a stopped robot.
-        max_energy_drain: Energy spent per step by a robot at full speed; the drain
-            grows linearly with the speed command in between.
-        charge_rate: Energy gained per charging step.
-        charge_delay: Stationary steps on the station before charging starts.
-        stationary_speed: A robot slower than this (units per step) is stationary.
-        robot_sensor_range: Range (edge to edge) of the robot-sensing arcs.
-        n_robot_arcs: Robot-sensing arcs.
-        station_sensor_range: Station distance that reads 1 (2 D / range - 1).
-        n_hidden: Hidden units of the network.
-        stop_threshold: Output o2 above this stops the robot.
-        max_steps: tau, the longest trial.
-        characterisation_interval: The task-specific characterisation samples
-            every this many steps (the authors' code: 10).
-        stop_freezes_heading: A robot told to stop (o2 above ``stop_threshold``)
-            does not turn either, as in the authors' code (the paper is silent).
-        charging_input: What the last input senses: ``in_station``, the robot's
-            centre within ``docking_distance`` (1) of the station centre whatever
-            its speed, as the authors' ``distance < resourceRadius - agentRadius``;
-            or ``charged``, the robot charged at the last step (the paper's
-            "whether it is currently charging").
-        energy_mean_over: The steps e_bar averages over: ``trial``, the steps
-            the trial lasted (the paper's and the authors' reading); or
-            ``max_steps``, tau whatever the trial's length (the robots count 0 once
-            all are dead), which removes the wait-then-burn optimum described in
-            the module docstring.
-        anchor_docked: A docked robot is anchored (``BodyState.anchored``: a
-            million times heavier, left in place by the overlap projection)
-            until it moves, so a teammate cannot push it off the station, as
-            the authors' robots refuse a blocked move. Off by default: its
-            effect on evolution has not been measured.
-    """
-
-    arena_size: float = 150.0
-    n_robots: int = 3
-    robot_radius: float = 4.0
-    max_speed: float = 1.0
-    max_turn: float = 0.78
-    start_separation: float = 34.0
-    station_radius: float = 5.0
-    max_energy: float = 500.0
-    initial_energy: float = 500.0
-    min_energy_drain: float = 1.05
-    max_energy_drain: float = 2.0
-    charge_rate: float = 20.0
-    charge_delay: int = 5
-    stationary_speed: float = 0.001
-    robot_sensor_range: float = 25.0
-    n_robot_arcs: int = 4
-    station_sensor_range: float = 75.0
-    n_hidden: int = 6
-    stop_threshold: float = 0.5
-    max_steps: int = 500
-    characterisation_interval: int = 1
+    arena_size: PositiveFloat = 150.0
+    """Side of the square arena (open: no walls)."""
+    n_robots: PositiveInt = 3
+    """N, robots in the team."""
+    robot_radius: PositiveFloat = 4.0
+    """Radius of a robot."""
+    max_speed: PositiveFloat = 1.0
+    """Top speed, units per step."""
+    max_turn: PositiveFloat = 0.78
+    """Largest turn, radians per step."""
+    start_separation: PositiveFloat = 34.0
+    """Least centre distance at the start between two robots, and between a robot
+    and the station centre."""
+    station_radius: PositiveFloat = 5.0
+    """Radius of the charging station at the arena centre."""
+    max_energy: PositiveFloat = 500.0
+    """e_max, the most energy a robot can hold."""
+    initial_energy: PositiveFloat = 500.0
+    """Energy of every robot at the start (e_max in docs/reference-setup.md)."""
+    min_energy_drain: NonNegativeFloat = 1.05
+    """Energy spent per step by a stopped robot."""
+    max_energy_drain: NonNegativeFloat = 2.0
+    """Energy spent per step by a robot at full speed; the drain grows linearly
+    with the speed command in between."""
+    charge_rate: NonNegativeFloat = 20.0
+    """Energy gained per charging step."""
+    charge_delay: NonNegativeInt = 5
+    """Stationary steps on the station before charging starts."""
+    stationary_speed: PositiveFloat = 0.001
+    """A robot slower than this (units per step) is stationary."""
+    robot_sensor_range: PositiveFloat = 25.0
+    """Range (edge to edge) of the robot-sensing arcs."""
+    n_robot_arcs: PositiveInt = 4
+    """Robot-sensing arcs."""
+    station_sensor_range: PositiveFloat = 75.0
+    """Station distance that reads 1 (2 D / range - 1)."""
+    n_hidden: PositiveInt = 6
+    """Hidden units of the network."""
+    stop_threshold: Fraction = 0.5
+    """Output o2 above this stops the robot."""
+    max_steps: PositiveInt = 500
+    """tau, the longest trial."""
+    characterisation_interval: PositiveInt = 1
+    """The task-specific characterisation samples every this many steps (the
+    authors' code: 10)."""
     stop_freezes_heading: bool = True
+    """A robot told to stop (o2 above ``stop_threshold``) does not turn either, as
+    in the authors' code (the paper is silent)."""
     charging_input: Literal["in_station", "charged"] = "in_station"
+    """What the last input senses: ``in_station``, the robot's centre within
+    ``docking_distance`` (1) of the station centre whatever its speed, as the
+    authors' ``distance < resourceRadius - agentRadius``; or ``charged``, the robot
+    charged at the last step (the paper's "whether it is currently charging")."""
     energy_mean_over: Literal["trial", "max_steps"] = "trial"
+    """The steps e_bar averages over: ``trial``, the steps the trial lasted (the
+    paper's and the authors' reading); or ``max_steps``, tau whatever the trial's
+    length (the robots count 0 once all are dead), which removes the
+    wait-then-burn optimum described in the module docstring."""
     anchor_docked: bool = False
+    """A docked robot is anchored (``BodyState.anchored``: a million times heavier,
+    left in place by the overlap projection) until it moves, so a teammate cannot
+    push it off the station, as the authors' robots refuse a blocked move. Off by
+    default: its effect on evolution has not been measured."""
 
     def __post_init__(self) -> None:
-        choices = {
-            "charging_input": ("in_station", "charged"),
-            "energy_mean_over": ("trial", "max_steps"),
-        }
-        for name, allowed in choices.items():
-            if getattr(self, name) not in allowed:
-                raise ValueError(
-                    f"resource_sharing: {name} must be one of {', '.join(allowed)}, "
-                    f"got {getattr(self, name)!r}"
-                )
-        for name in ("stop_freezes_heading", "anchor_docked"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(
-                    f"resource_sharing: {name} must be true or false, got "
-                    f"{getattr(self, name)!r}"
-                )
-        for name in (
-            "arena_size",
-            "robot_radius",
-            "max_speed",
-            "max_turn",
-            "start_separation",
-            "station_radius",
-            "max_energy",
+        check(
+            self.initial_energy <= self.max_energy,
             "initial_energy",
-            "stationary_speed",
-            "robot_sensor_range",
-            "station_sensor_range",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"resource_sharing: {name} must be positive, got {v}")
-        for name in ("min_energy_drain", "max_energy_drain", "charge_rate"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"resource_sharing: {name} must be >= 0, got {v}")
-        for name in (
-            "n_robots",
-            "n_robot_arcs",
-            "n_hidden",
-            "max_steps",
-            "characterisation_interval",
-        ):
-            if getattr(self, name) < 1:
-                raise ValueError(
-                    f"resource_sharing: {name} must be >= 1, got {getattr(self, name)}"
-                )
-        if self.charge_delay < 0:
-            raise ValueError(
-                f"resource_sharing: charge_delay must be >= 0, got {self.charge_delay}"
-            )
-        if not 0.0 <= self.stop_threshold <= 1.0:
-            raise ValueError(
-                "resource_sharing: stop_threshold must be in [0, 1], got "
-                f"{self.stop_threshold}"
-            )
-        if self.initial_energy > self.max_energy:
-            raise ValueError(
-                f"resource_sharing: initial_energy {self.initial_energy} exceeds "
-                f"max_energy {self.max_energy}"
-            )
-        if self.max_energy_drain < self.min_energy_drain:
-            raise ValueError(
-                f"resource_sharing: max_energy_drain {self.max_energy_drain} is below "
-                f"min_energy_drain {self.min_energy_drain}"
-            )
+            f"{self.initial_energy} exceeds max_energy {self.max_energy}",
+        )
+        check(
+            self.max_energy_drain >= self.min_energy_drain,
+            "max_energy_drain",
+            f"{self.max_energy_drain} is below min_energy_drain "
+            f"{self.min_energy_drain}",
+        )
         r = self.robot_radius
-        if self.max_speed >= r:
-            raise ValueError(
-                f"resource_sharing: max_speed {self.max_speed} must be below the robot "
-                f"radius {r}, or robots could pass through each other in one step"
-            )
-        if self.station_radius <= r:
-            raise ValueError(
-                f"resource_sharing: station_radius {self.station_radius} must exceed "
-                f"robot_radius {r}, or no robot fits on the station"
-            )
-        if self.station_radius >= 2.0 * r:
-            raise ValueError(
-                f"resource_sharing: station_radius {self.station_radius} must be below "
-                f"a robot's diameter {2.0 * r}, or the station could hold two robots"
-            )
-        if self.start_separation < 2.0 * r:
-            raise ValueError(
-                f"resource_sharing: start_separation {self.start_separation} must be "
-                f"at least a robot's diameter {2.0 * r}"
-            )
+        check(
+            self.max_speed < r,
+            "max_speed",
+            f"{self.max_speed} must be below the robot radius {r}, or robots could "
+            "pass through each other in one step",
+        )
+        check(
+            self.station_radius > r,
+            "station_radius",
+            f"{self.station_radius} must exceed robot_radius {r}, or no robot fits "
+            "on the station",
+        )
+        check(
+            self.station_radius < 2.0 * r,
+            "station_radius",
+            f"{self.station_radius} must be below a robot's diameter {2.0 * r}, or "
+            "the station could hold two robots",
+        )
+        check(
+            self.start_separation >= 2.0 * r,
+            "start_separation",
+            f"{self.start_separation} must be at least a robot's diameter {2.0 * r}",
+        )
         # Necessary for the start draws: the start box (side size - 2 r, centred
         # on the station) reaches sep from the station centre, and N + 1 discs of
         # radius sep / 2 centred in it fit, by area, in the box grown by sep / 2.
         sep, side = self.start_separation, self.arena_size - 2.0 * r
         needed = (self.n_robots + 1) * math.pi * (sep / 2.0) ** 2
-        if side <= 0.0 or side / math.sqrt(2.0) < sep or needed > (side + sep) ** 2:
-            raise ValueError(
-                f"resource_sharing: the arena is too small for its robots: arena_size "
-                f"{self.arena_size} cannot hold {self.n_robots} robots of radius {r} "
-                f"and the station at least start_separation {sep} apart"
-            )
+        check(
+            side > 0.0 and side / math.sqrt(2.0) >= sep and needed <= (side + sep) ** 2,
+            "arena_size",
+            f"the arena is too small for its robots: arena_size {self.arena_size} "
+            f"cannot hold {self.n_robots} robots of radius {r} and the station at "
+            f"least start_separation {sep} apart",
+        )
 
     @property
     def n_inputs(self) -> int:
