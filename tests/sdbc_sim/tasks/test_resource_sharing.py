@@ -340,10 +340,10 @@ def test_description_gives_the_papers_21_dimensions() -> None:
         ({"start_separation": 6.0}, "start_separation"),
         ({"characterisation_interval": 0}, "characterisation_interval"),
         ({"stationary_speed": float("nan")}, "stationary_speed"),
-        ({"charging_input": "charging"}, "charging_input must be one of in_station"),
-        ({"energy_mean_over": "steps"}, "energy_mean_over must be one of trial"),
-        ({"stop_freezes_heading": 1}, "stop_freezes_heading must be true or false"),
-        ({"anchor_docked": "yes"}, "anchor_docked must be true or false"),
+        ({"charging_input": "charging"}, "charging_input: Input should be 'in_st"),
+        ({"energy_mean_over": "steps"}, "energy_mean_over: Input should be 'trial'"),
+        ({"stop_freezes_heading": 1}, "stop_freezes_heading: .* valid boolean, got 1"),
+        ({"anchor_docked": "yes"}, "anchor_docked: .* valid boolean, got 'yes'"),
     ],
 )
 def test_bad_settings_are_named(overrides: dict, message: str) -> None:
