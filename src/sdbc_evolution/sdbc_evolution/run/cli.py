@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import ConfigError, Treatment
+from sdbc_evolution.run.config import ConfigError, Treatment, check_task_config
 from sdbc_evolution.run.evaluators import (
     SchedulerUnreachable,
     add_evaluator_arguments,
@@ -101,6 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         config = resolve_config(config_request(args))
+        # The task's own settings too, so that a bad one stops before any run.
+        check_task_config(config.task, config.task_config)
         if args.workers is not None and args.workers < 1:
             raise ConfigError(f"--workers: must be at least 1, got {args.workers}")
         out = args.out if args.out is not None else default_out(config)

@@ -22,7 +22,6 @@ from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
-    check_task_config,
     load_config,
     quickstart_config,
 )
@@ -68,8 +67,7 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
     filled in.
 
     Raises:
-        ConfigError: A bad file, override or task setting (named as
-            ``task_config.NAME``), or ``resume`` without ``out``.
+        ConfigError: A bad file or override, or ``resume`` without ``out``.
         CheckpointError: ``resume`` where ``out`` holds no run.
     """
     out = request.out
@@ -104,12 +102,9 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
             problem = error.prefixed(section)
             raise ConfigError(str(problem), problem.problems) from None
     try:
-        config = config.replace(**changes).resolved()
+        return config.replace(**changes).resolved()
     except (TypeError, ValueError) as error:
         raise ConfigError(str(error)) from None
-    # The task's own settings too, so that a bad one stops before any run.
-    check_task_config(config.task, config.task_config)
-    return config
 
 
 def default_out(config: ExperimentConfig) -> Path:
