@@ -196,3 +196,22 @@ def test_dds_files_older_than_the_graph_are_left_alone(tmp_path, monkeypatch):
     old.write_bytes(b"")
     assert shm.remove_orphaned_dds_files(since=old.stat().st_ctime + 60.0) == []
     assert old.exists()
+
+
+@pytest.mark.parametrize(
+    ("launch", "message"),
+    [
+        ({"robots_per_process": 1.5}, "sdbc_graph.robots_per_process: .* integer"),
+        ({"evolution": "yes"}, "sdbc_graph.evolution: .* valid boolean, got 'yes'"),
+        ({"shutdown_timeout": float("nan")}, "sdbc_graph.shutdown_timeout: .* finite"),
+        ({"trial_timeout": "60"}, "sdbc_graph.trial_timeout: .* valid number"),
+        ({"record_topics": ["/a", ""]}, r"sdbc_graph.record_topics.1: "),
+        ({"robots": 2}, r"sdbc_graph.robots: unknown key; known keys: \["),
+    ],
+)
+def test_launcher_settings_are_checked_like_every_other_setting(
+    tmp_path, launch, message
+):
+    data = {**minimal(), "sdbc_graph": {"ros__parameters": launch}}
+    with pytest.raises(GraphError, match=message):
+        load_graph_file(write(tmp_path, data))

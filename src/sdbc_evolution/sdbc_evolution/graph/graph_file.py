@@ -10,13 +10,20 @@ stays valid for any node's ``--params-file``. The task is named once, under ``/*
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import yaml
+from sdbc_sim.settings import (
+    Field,
+    PositiveFloat,
+    PositiveInt,
+    SettingsError,
+    load,
+    settings,
+)
 
 LAUNCH_KEY = "sdbc_graph"
 """Top-level key of a graph file whose ``ros__parameters`` are the
@@ -27,60 +34,30 @@ CONTROLLERS_KEY = "/**/controller"
 """Parameter section of every controller node (in any robot's namespace)."""
 
 
-class GraphError(ValueError):
+class GraphError(SettingsError):
     """A graph file or launcher option is malformed; the message names it."""
 
 
-@dataclass(frozen=True)
+@settings
 class LaunchSettings:
-    """The launcher's settings: the ``sdbc_graph`` section of a graph file.
+    """The launcher's settings: the ``sdbc_graph`` section of a graph file."""
 
-    Attributes:
-        robots_per_process: Controllers per process; 1 runs each robot's
-            controller in a process of its own.
-        evolution: Start the evolution node.
-        record_topics: Topics the recorder writes to the bag (with ``--record``);
-            empty means :data:`DEFAULT_RECORD_TOPICS` plus every robot's sensors
-            and command.
-        shutdown_timeout: Seconds a process gets to exit after SIGINT before it
-            is killed.
-        ready_timeout: Seconds to wait for the simulator (and the recorder) to
-            come up before ``--trial`` requests.
-        trial_timeout: Seconds to wait for the answer to one ``--trial``.
-    """
-
-    robots_per_process: int = 1
+    robots_per_process: PositiveInt = 1
+    """Controllers per process; 1 runs each robot's controller in a process of its
+    own."""
     evolution: bool = False
-    record_topics: tuple[str, ...] = ()
-    shutdown_timeout: float = 10.0
-    ready_timeout: float = 30.0
-    trial_timeout: float = 600.0
-
-    def __post_init__(self) -> None:
-        if not (
-            isinstance(self.robots_per_process, int) and self.robots_per_process >= 1
-        ):
-            raise GraphError(
-                f"sdbc_graph.robots_per_process: must be an integer >= 1, got "
-                f"{self.robots_per_process!r}"
-            )
-        if not isinstance(self.evolution, bool):
-            raise GraphError(
-                f"sdbc_graph.evolution: must be true or false, got {self.evolution!r}"
-            )
-        topics = self.record_topics
-        if isinstance(topics, str) or not all(isinstance(t, str) and t for t in topics):
-            raise GraphError(
-                "sdbc_graph.record_topics: must be a list of topic names, got "
-                f"{topics!r}"
-            )
-        object.__setattr__(self, "record_topics", tuple(topics))
-        for name in ("shutdown_timeout", "ready_timeout", "trial_timeout"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
-                raise GraphError(
-                    f"sdbc_graph.{name}: must be a positive number, got {value!r}"
-                )
+    """Start the evolution node."""
+    record_topics: tuple[Annotated[str, Field(min_length=1)], ...] = ()
+    """Topics the recorder writes to the bag (with ``--record``); empty means
+    :data:`~sdbc_evolution.graph.processes.DEFAULT_RECORD_TOPICS` plus every
+    robot's sensors and command."""
+    shutdown_timeout: PositiveFloat = 10.0
+    """Seconds a process gets to exit after SIGINT before it is killed."""
+    ready_timeout: PositiveFloat = 30.0
+    """Seconds to wait for the simulator (and the recorder) to come up before
+    ``--trial`` requests."""
+    trial_timeout: PositiveFloat = 600.0
+    """Seconds to wait for the answer to one ``--trial``."""
 
 
 @dataclass(frozen=True)
@@ -128,14 +105,10 @@ def load_graph_file(path: str | Path) -> GraphFile:
         raise GraphError(
             f"graph file {path}: '{LAUNCH_KEY}' needs a 'ros__parameters' mapping"
         )
-    known = {f.name for f in dataclasses.fields(LaunchSettings)}
-    unknown = sorted(set(launch) - known)
-    if unknown:
-        raise GraphError(
-            f"graph file {path}: unknown {LAUNCH_KEY} settings {unknown}; known: "
-            f"{', '.join(sorted(known))}"
-        )
-    settings = LaunchSettings(**launch)
+    try:
+        settings = load(LaunchSettings, launch, LAUNCH_KEY)
+    except SettingsError as error:
+        raise GraphError(f"graph file {path}: {error}", error.problems) from None
     for key, section in data.items():
         if not (
             isinstance(section, Mapping)
