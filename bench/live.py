@@ -122,7 +122,8 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     from rosbags.highlevel import AnyReader
     from sdbc_evolution.graph.graph_file import load_graph_file, trial_graph
     from sdbc_evolution.graph.processes import ProcessGraph, child_environment
-    from sdbc_sim.nodes.interface import RECORDER_NODE, TASK_STATE_TOPIC
+    from sdbc_sim.nodes.interface import LATCHED_QOS, RECORDER_READY_TOPIC
+    from std_msgs.msg import Bool
 
     from sdbc_msgs.srv import RunTrial
 
@@ -156,6 +157,13 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
         node = Node("bench_live")
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        recorder_ready = threading.Event()
+        node.create_subscription(
+            Bool,
+            RECORDER_READY_TOPIC,
+            lambda m: m.data and recorder_ready.set(),
+            LATCHED_QOS,
+        )
         spinner = threading.Thread(target=executor.spin, daemon=True)
         spinner.start()
         try:
@@ -165,15 +173,10 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
             run_trials(client, args, 1)  # warm-up: discovery, first allocations
             results["unobserved"] = run_trials(client, args, args.repeat)
             graph.start("recorder")
-            deadline = time.monotonic() + 60.0
-            while not any(
-                info.node_name == RECORDER_NODE
-                for info in node.get_subscriptions_info_by_topic("/" + TASK_STATE_TOPIC)
-            ):
-                if time.monotonic() > deadline:
-                    sys.exit(f"the recorder did not come up; logs in {tmp / 'logs'}")
-                time.sleep(0.1)
-            time.sleep(1.0)  # the simulator's side of discovery
+            # Ready: every recorded topic matched to its publishers (the simulator
+            # then also waits for its side of the match before a trial's step 1).
+            if not recorder_ready.wait(60.0):
+                sys.exit(f"the recorder did not come up; logs in {tmp / 'logs'}")
             results["observed"] = run_trials(client, args, args.repeat)
         finally:
             executor.shutdown()
