@@ -36,9 +36,14 @@ class Geometry(str, Enum):
     nearest segment."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class EntityGroupSpec:
-    """One entity group of a task description.
+    """One entity group of a task description, declared by keyword::
+
+        EntityGroupSpec(
+            name="Gate", attributes=("is closing",), min_size=1, max_size=1,
+            static=True, geometry=Geometry.POLYGON,
+        )
 
     Attributes:
         name: Human name of the group, used to name features ("Agent", "Gate").
@@ -47,8 +52,9 @@ class EntityGroupSpec:
         min_size: eta_min, the fewest entities the group can hold.
         max_size: eta_max, the most entities the group can hold; also the number of
             entity slots in the arrays.
-        is_static: True if the group's entities never move. Static groups get no
+        static: True if the group's entities never move. Static groups get no
             dispersion feature, and no distance feature to another static group.
+            (``sdbc_msgs/EntityGroup`` calls it ``is_static``.)
         geometry: The shape of the group's entities for f_D.
     """
 
@@ -56,29 +62,57 @@ class EntityGroupSpec:
     attributes: tuple[str, ...]
     min_size: int
     max_size: int
-    is_static: bool
+    static: bool
     geometry: Geometry
 
     def __post_init__(self) -> None:
-        if not self.name:
-            raise ValueError("entity group: the name is empty")
-        if self.min_size < 0:
+        where = f"entity group {self.name!r}"
+        if not isinstance(self.name, str) or not self.name:
             raise ValueError(
-                f"entity group {self.name!r}: min_size {self.min_size} < 0"
+                f"entity group: the name must be a non-empty string, got {self.name!r}"
             )
+        if isinstance(self.attributes, str) or not all(
+            isinstance(a, str) and a for a in self.attributes
+        ):
+            raise ValueError(
+                f"{where}: attributes must be a sequence of names, got "
+                f"{self.attributes!r}"
+            )
+        for label in ("min_size", "max_size"):
+            value = getattr(self, label)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ValueError(f"{where}: {label} must be an integer, got {value!r}")
+        if not isinstance(self.static, (bool, np.bool_)):
+            raise ValueError(
+                f"{where}: static must be True or False, got {self.static!r}"
+            )
+        try:
+            geometry = Geometry(self.geometry)
+        except ValueError:
+            raise ValueError(
+                f"{where}: geometry must be one of "
+                f"{[g.value for g in Geometry]}, got {self.geometry!r}"
+            ) from None
+        if self.min_size < 0:
+            raise ValueError(f"{where}: min_size {self.min_size} < 0")
         if self.min_size > self.max_size:
             raise ValueError(
-                f"entity group {self.name!r}: min_size {self.min_size} > max_size "
-                f"{self.max_size}"
+                f"{where}: min_size {self.min_size} > max_size {self.max_size}"
             )
         if self.max_size < 1:
-            raise ValueError(
-                f"entity group {self.name!r}: max_size {self.max_size} < 1"
-            )
+            raise ValueError(f"{where}: max_size {self.max_size} < 1")
         if len(set(self.attributes)) != len(self.attributes):
-            raise ValueError(f"entity group {self.name!r}: duplicate attribute names")
-        object.__setattr__(self, "geometry", Geometry(self.geometry))
+            raise ValueError(f"{where}: duplicate attribute names")
+        object.__setattr__(self, "geometry", geometry)
         object.__setattr__(self, "attributes", tuple(self.attributes))
+        object.__setattr__(self, "min_size", int(self.min_size))
+        object.__setattr__(self, "max_size", int(self.max_size))
+        object.__setattr__(self, "static", bool(self.static))
+
+    @property
+    def is_static(self) -> bool:
+        """:attr:`static` under the name ``sdbc_msgs/EntityGroup`` gives it."""
+        return self.static
 
 
 @dataclass(frozen=True)
@@ -114,8 +148,12 @@ class TaskDescription:
 class GroupState:
     """One entity group at one step, over a batch of trials.
 
-    Arrays may have a leading dimension of 1 instead of B where every trial shares
-    them (a static polygon); readers broadcast.
+    Every array below may have a leading dimension of 1 instead of B: one row
+    shared by every trial (a static polygon, radii that never change, a presence
+    that is the same in all trials); readers broadcast it, and it gives the same
+    features as B repeated rows. Any other leading dimension is refused, naming the
+    group and the array (:func:`validate_task_state`). Only
+    :attr:`TaskState.active` always has one row per trial.
 
     Attributes:
         present: (B, S) bool. Which entity slots hold an entity at this step; the
@@ -219,6 +257,12 @@ def _check_array(
     if array.dtype != expected:
         raise ValueError(
             f"{where}: {label} has dtype {array.dtype}, expected {expected}"
+        )
+    n_trials = state.active.shape[0]
+    if array.ndim >= 1 and array.shape[1:] == tail:
+        raise ValueError(
+            f"{where}: {label} has {array.shape[0]} rows, expected {n_trials} (one "
+            "per trial) or 1 (shared by every trial)"
         )
     raise ValueError(
         f"{where}: {label} has shape {array.shape}, expected "

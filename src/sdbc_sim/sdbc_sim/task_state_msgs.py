@@ -115,7 +115,7 @@ def task_state_to_msg(
                 entities=entities,
                 min_size=spec.min_size,
                 max_size=spec.max_size,
-                is_static=spec.is_static,
+                is_static=spec.static,
             )
         )
     return msg
@@ -165,7 +165,7 @@ def task_description_from_msg(
                 attributes=tuple(group.attribute_names),
                 min_size=int(group.min_size),
                 max_size=int(group.max_size),
-                is_static=bool(group.is_static),
+                static=bool(group.is_static),
                 geometry=geometry,
             )
         )
@@ -178,7 +178,7 @@ def _check_group_fields(where: str, spec: EntityGroupSpec, group: Any) -> None:
         "attribute_names": (tuple(group.attribute_names), spec.attributes),
         "min_size": (int(group.min_size), spec.min_size),
         "max_size": (int(group.max_size), spec.max_size),
-        "is_static": (bool(group.is_static), spec.is_static),
+        "is_static": (bool(group.is_static), spec.static),
     }
     for field, (got, expected) in fields.items():
         if got != expected:

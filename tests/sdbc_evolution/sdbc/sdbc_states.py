@@ -22,10 +22,29 @@ GATE_ESCAPE = TaskDescription(
     "gate_escape",
     (
         EntityGroupSpec(
-            "Agent", (*MOVING, "is passing gate"), 0, 4, False, Geometry.CIRCLE
+            name="Agent",
+            attributes=(*MOVING, "is passing gate"),
+            min_size=0,
+            max_size=4,
+            static=False,
+            geometry=Geometry.CIRCLE,
         ),
-        EntityGroupSpec("Gate", ("is closing",), 1, 1, True, Geometry.POLYGON),
-        EntityGroupSpec("Wall", (), 1, 1, True, Geometry.POLYGON),
+        EntityGroupSpec(
+            name="Gate",
+            attributes=("is closing",),
+            min_size=1,
+            max_size=1,
+            static=True,
+            geometry=Geometry.POLYGON,
+        ),
+        EntityGroupSpec(
+            name="Wall",
+            attributes=(),
+            min_size=1,
+            max_size=1,
+            static=True,
+            geometry=Geometry.POLYGON,
+        ),
     ),
 )
 
@@ -33,23 +52,51 @@ RESOURCE_SHARING = TaskDescription(
     "resource_sharing",
     (
         EntityGroupSpec(
-            "Agent",
-            (*MOVING, "energy level", "is charging"),
-            0,
-            3,
-            False,
-            Geometry.CIRCLE,
+            name="Agent",
+            attributes=(*MOVING, "energy level", "is charging"),
+            min_size=0,
+            max_size=3,
+            static=False,
+            geometry=Geometry.CIRCLE,
         ),
-        EntityGroupSpec("Station", ("is occupied",), 1, 1, True, Geometry.CIRCLE),
+        EntityGroupSpec(
+            name="Station",
+            attributes=("is occupied",),
+            min_size=1,
+            max_size=1,
+            static=True,
+            geometry=Geometry.CIRCLE,
+        ),
     ),
 )
 
 PREDATOR_PREY = TaskDescription(
     "predator_prey",
     (
-        EntityGroupSpec("Predators", MOVING, 3, 3, False, Geometry.CIRCLE),
-        EntityGroupSpec("Prey", MOVING, 0, 1, False, Geometry.CIRCLE),
-        EntityGroupSpec("Boundary", (), 1, 1, True, Geometry.POLYGON),
+        EntityGroupSpec(
+            name="Predators",
+            attributes=MOVING,
+            min_size=3,
+            max_size=3,
+            static=False,
+            geometry=Geometry.CIRCLE,
+        ),
+        EntityGroupSpec(
+            name="Prey",
+            attributes=MOVING,
+            min_size=0,
+            max_size=1,
+            static=False,
+            geometry=Geometry.CIRCLE,
+        ),
+        EntityGroupSpec(
+            name="Boundary",
+            attributes=(),
+            min_size=1,
+            max_size=1,
+            static=True,
+            geometry=Geometry.POLYGON,
+        ),
     ),
 )
 
@@ -57,9 +104,30 @@ PREDATOR_PREY = TaskDescription(
 SMALL = TaskDescription(
     "small",
     (
-        EntityGroupSpec("Robots", ("speed",), 0, 3, False, Geometry.CIRCLE),
-        EntityGroupSpec("Beacon", ("is on",), 1, 1, True, Geometry.POINT),
-        EntityGroupSpec("Fence", (), 1, 1, True, Geometry.POLYGON),
+        EntityGroupSpec(
+            name="Robots",
+            attributes=("speed",),
+            min_size=0,
+            max_size=3,
+            static=False,
+            geometry=Geometry.CIRCLE,
+        ),
+        EntityGroupSpec(
+            name="Beacon",
+            attributes=("is on",),
+            min_size=1,
+            max_size=1,
+            static=True,
+            geometry=Geometry.POINT,
+        ),
+        EntityGroupSpec(
+            name="Fence",
+            attributes=(),
+            min_size=1,
+            max_size=1,
+            static=True,
+            geometry=Geometry.POLYGON,
+        ),
     ),
 )
 SMALL_NAMES = [

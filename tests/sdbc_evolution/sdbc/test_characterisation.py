@@ -148,7 +148,17 @@ def test_a_full_group_missing_an_entity_is_named() -> None:
 
 def test_a_group_below_its_minimum_size_is_named() -> None:
     description = TaskDescription(
-        "pair", (EntityGroupSpec("Dots", (), 2, 3, False, Geometry.POINT),)
+        "pair",
+        (
+            EntityGroupSpec(
+                name="Dots",
+                attributes=(),
+                min_size=2,
+                max_size=3,
+                static=False,
+                geometry=Geometry.POINT,
+            ),
+        ),
     )
     present = np.array([[True, True, False], [False, True, False]])
     state = TaskState(
@@ -167,3 +177,86 @@ def test_use_before_start_is_an_error() -> None:
         SdbcExtractor().characterisations()
     with pytest.raises(ValueError, match="n_trials 0"):
         SdbcExtractor().start(SMALL, 0)
+
+
+def _one_row_per_trial(group: GroupState, n_trials: int) -> GroupState:
+    """``group`` with every shared row (a leading dimension of 1) repeated."""
+
+    def repeat(array: np.ndarray | None) -> np.ndarray | None:
+        if array is None or array.shape[0] != 1:
+            return array
+        return np.repeat(array, n_trials, axis=0)
+
+    return GroupState(
+        present=repeat(group.present),
+        attributes=repeat(group.attributes),
+        centres=repeat(group.centres),
+        radii=repeat(group.radii),
+        segments=repeat(group.segments),
+    )
+
+
+def test_shared_rows_give_the_same_features_as_repeated_rows() -> None:
+    presence = [[True, False, True], [False, True, True], [True, True, True]]
+    vectors = []
+    for share in (True, False):
+        extractor = SdbcExtractor()
+        extractor.start(SMALL, 3)
+        for k in (1, 2, 3):
+            state = small_state(presence)
+            state.step = k
+            if not share:
+                state.groups = tuple(_one_row_per_trial(g, 3) for g in state.groups)
+            extractor.observe(state)
+        vectors.append(extractor.characterisations())
+    shared_state = small_state(presence)
+    assert shared_state.groups[1].present.shape[0] == 1  # the test shares rows
+    assert shared_state.groups[2].segments.shape[0] == 1
+    np.testing.assert_array_equal(vectors[0], vectors[1])
+
+
+def test_a_leading_dimension_other_than_trials_or_one_is_refused_by_group() -> None:
+    state = small_state([[True, False, True], [True, True, True]])
+    beacon = state.groups[1]
+    beacon.attributes = np.ones((3, 1, 1))
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 2)
+    with pytest.raises(
+        ValueError,
+        match=r"group 'Beacon': attributes has 3 rows, expected 2 \(one per trial\) "
+        r"or 1 \(shared by every trial\)",
+    ):
+        extractor.observe(state)
+
+
+def test_entity_groups_are_declared_by_keyword_and_checked() -> None:
+    spec = EntityGroupSpec(
+        name="Beacon",
+        attributes=["is on"],
+        min_size=1,
+        max_size=1,
+        static=True,
+        geometry="point",
+    )
+    assert spec.attributes == ("is on",) and spec.geometry is Geometry.POINT
+    assert spec.static and spec.is_static
+    with pytest.raises(TypeError):
+        EntityGroupSpec("Beacon", ("is on",), 1, 1, True, Geometry.POINT)  # type: ignore[misc]
+    good = dict(
+        name="Beacon",
+        attributes=("is on",),
+        min_size=1,
+        max_size=1,
+        static=True,
+        geometry=Geometry.POINT,
+    )
+    for change, message in (
+        ({"max_size": 1.5}, "max_size must be an integer"),
+        ({"min_size": True}, "min_size must be an integer"),
+        ({"static": "yes"}, "static must be True or False"),
+        ({"geometry": "cube"}, "geometry must be one of"),
+        ({"attributes": "is on"}, "attributes must be a sequence of names"),
+        ({"name": ""}, "the name must be a non-empty string"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            EntityGroupSpec(**{**good, **change})

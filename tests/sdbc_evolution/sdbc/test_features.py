@@ -72,7 +72,17 @@ def test_dispersion_is_the_mean_over_pairs() -> None:
     # Three points 5, 5 and 10 apart: the mean over pairs is 20/3 (the paper's
     # printed eq. 4, dividing by (|g| - 1)^2, would give 10).
     description = TaskDescription(
-        "points", (EntityGroupSpec("Dots", (), 0, 3, False, Geometry.POINT),)
+        "points",
+        (
+            EntityGroupSpec(
+                name="Dots",
+                attributes=(),
+                min_size=0,
+                max_size=3,
+                static=False,
+                geometry=Geometry.POINT,
+            ),
+        ),
     )
     centres = np.array([[[0.0, 0.0], [3.0, 4.0], [6.0, 8.0]]])
     state = TaskState(
@@ -94,8 +104,22 @@ def test_moving_polygons() -> None:
     description = TaskDescription(
         "doors",
         (
-            EntityGroupSpec("Doors", ("open",), 2, 2, False, Geometry.POLYGON),
-            EntityGroupSpec("Ball", (), 1, 1, False, Geometry.CIRCLE),
+            EntityGroupSpec(
+                name="Doors",
+                attributes=("open",),
+                min_size=2,
+                max_size=2,
+                static=False,
+                geometry=Geometry.POLYGON,
+            ),
+            EntityGroupSpec(
+                name="Ball",
+                attributes=(),
+                min_size=1,
+                max_size=1,
+                static=False,
+                geometry=Geometry.CIRCLE,
+            ),
         ),
     )
     doors = np.array([[[[[0.0, 0.0], [1.0, 0.0]]], [[[0.0, 3.0], [1.0, 3.0]]]]])
@@ -127,11 +151,32 @@ def test_structural_exclusions() -> None:
         "exclusions",
         (
             # min = max: no size. max = 1: no dispersion.
-            EntityGroupSpec("Solo", ("a",), 1, 1, False, Geometry.CIRCLE),
+            EntityGroupSpec(
+                name="Solo",
+                attributes=("a",),
+                min_size=1,
+                max_size=1,
+                static=False,
+                geometry=Geometry.CIRCLE,
+            ),
             # Static, several entities: no dispersion.
-            EntityGroupSpec("Posts", (), 2, 5, True, Geometry.POINT),
+            EntityGroupSpec(
+                name="Posts",
+                attributes=(),
+                min_size=2,
+                max_size=5,
+                static=True,
+                geometry=Geometry.POINT,
+            ),
             # Static too: no Posts-lamps distance.
-            EntityGroupSpec("Lamps", ("lit",), 0, 2, True, Geometry.POINT),
+            EntityGroupSpec(
+                name="Lamps",
+                attributes=("lit",),
+                min_size=0,
+                max_size=2,
+                static=True,
+                geometry=Geometry.POINT,
+            ),
         ),
     )
     assert [f.name for f in behaviour_features(description)] == [
@@ -205,8 +250,22 @@ def test_acronym_group_names_keep_their_case() -> None:
     description = TaskDescription(
         "acronym",
         (
-            EntityGroupSpec("Robot", (), 1, 1, False, Geometry.POINT),
-            EntityGroupSpec("GPS beacon", (), 1, 1, True, Geometry.POINT),
+            EntityGroupSpec(
+                name="Robot",
+                attributes=(),
+                min_size=1,
+                max_size=1,
+                static=False,
+                geometry=Geometry.POINT,
+            ),
+            EntityGroupSpec(
+                name="GPS beacon",
+                attributes=(),
+                min_size=1,
+                max_size=1,
+                static=True,
+                geometry=Geometry.POINT,
+            ),
         ),
     )
     assert [f.name for f in behaviour_features(description)] == [
@@ -217,7 +276,16 @@ def test_acronym_group_names_keep_their_case() -> None:
 def test_clashing_feature_names_are_an_error() -> None:
     description = TaskDescription(
         "clash",
-        (EntityGroupSpec("Agent", ("dispersion",), 0, 2, False, Geometry.POINT),),
+        (
+            EntityGroupSpec(
+                name="Agent",
+                attributes=("dispersion",),
+                min_size=0,
+                max_size=2,
+                static=False,
+                geometry=Geometry.POINT,
+            ),
+        ),
     )
     with pytest.raises(ValueError, match=r"'Agent dispersion'"):
         behaviour_features(description)
@@ -289,7 +357,21 @@ def test_malformed_states_are_named(mutate, message: str) -> None:
 
 def test_bad_task_descriptions_are_named() -> None:
     with pytest.raises(ValueError, match=r"'Agent': min_size 3 > max_size 2"):
-        EntityGroupSpec("Agent", ("x",), 3, 2, False, Geometry.CIRCLE)
-    agent = EntityGroupSpec("Agent", ("x",), 0, 2, False, Geometry.CIRCLE)
+        EntityGroupSpec(
+            name="Agent",
+            attributes=("x",),
+            min_size=3,
+            max_size=2,
+            static=False,
+            geometry=Geometry.CIRCLE,
+        )
+    agent = EntityGroupSpec(
+        name="Agent",
+        attributes=("x",),
+        min_size=0,
+        max_size=2,
+        static=False,
+        geometry=Geometry.CIRCLE,
+    )
     with pytest.raises(ValueError, match=r"duplicate group names \['Agent'\]"):
         TaskDescription("twice", (agent, agent))

@@ -40,11 +40,46 @@ except ImportError:
 FORAGING = TaskDescription(
     "foraging",
     (
-        EntityGroupSpec("Forager", ("x", "y", "load"), 1, 3, False, Geometry.CIRCLE),
-        EntityGroupSpec("Food", ("calories",), 0, 4, True, Geometry.POINT),
-        EntityGroupSpec("Nest", ("stock",), 0, 2, True, Geometry.CIRCLE),
-        EntityGroupSpec("Walls", (), 0, 3, True, Geometry.POLYGON),
-        EntityGroupSpec("Shadow", ("x",), 0, 2, False, Geometry.POINT),
+        EntityGroupSpec(
+            name="Forager",
+            attributes=("x", "y", "load"),
+            min_size=1,
+            max_size=3,
+            static=False,
+            geometry=Geometry.CIRCLE,
+        ),
+        EntityGroupSpec(
+            name="Food",
+            attributes=("calories",),
+            min_size=0,
+            max_size=4,
+            static=True,
+            geometry=Geometry.POINT,
+        ),
+        EntityGroupSpec(
+            name="Nest",
+            attributes=("stock",),
+            min_size=0,
+            max_size=2,
+            static=True,
+            geometry=Geometry.CIRCLE,
+        ),
+        EntityGroupSpec(
+            name="Walls",
+            attributes=(),
+            min_size=0,
+            max_size=3,
+            static=True,
+            geometry=Geometry.POLYGON,
+        ),
+        EntityGroupSpec(
+            name="Shadow",
+            attributes=("x",),
+            min_size=0,
+            max_size=2,
+            static=False,
+            geometry=Geometry.POINT,
+        ),
     ),
 )
 DESCRIPTIONS = [GATE_ESCAPE, RESOURCE_SHARING, PREDATOR_PREY, SMALL, FORAGING]
@@ -151,8 +186,22 @@ def test_message_path_equals_engine_path(
 EXAMPLE = TaskDescription(
     "example",
     (
-        EntityGroupSpec("Agent", (), 1, 1, False, Geometry.POINT),
-        EntityGroupSpec("Targets", (), 0, 2, True, Geometry.POINT),
+        EntityGroupSpec(
+            name="Agent",
+            attributes=(),
+            min_size=1,
+            max_size=1,
+            static=False,
+            geometry=Geometry.POINT,
+        ),
+        EntityGroupSpec(
+            name="Targets",
+            attributes=(),
+            min_size=0,
+            max_size=2,
+            static=True,
+            geometry=Geometry.POINT,
+        ),
     ),
 )
 

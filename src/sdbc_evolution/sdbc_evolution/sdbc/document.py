@@ -67,7 +67,7 @@ def task_section(description: TaskDescription) -> str:
         attributes = ", ".join(g.attributes) or "(none)"
         lines.append(
             f"| {g.name} | {attributes} | {g.min_size} | {g.max_size} | "
-            f"{_yes(g.is_static)} | {g.geometry.value} |"
+            f"{_yes(g.static)} | {g.geometry.value} |"
         )
     lines += ["", "| # | dimension |", "|---|---|"]
     lines += [f"| {k} | {name} |" for k, name in enumerate(names)]

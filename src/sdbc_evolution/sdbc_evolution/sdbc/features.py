@@ -117,12 +117,12 @@ def has_group_size(group: EntityGroupSpec) -> bool:
 
 def has_dispersion(group: EntityGroupSpec) -> bool:
     """Eq. 4 applies: the group moves and can hold two entities."""
-    return not group.is_static and group.max_size > 1
+    return not group.static and group.max_size > 1
 
 
 def has_group_distance(group: EntityGroupSpec, other: EntityGroupSpec) -> bool:
     """Eq. 5 applies: at least one of the two groups moves."""
-    return not (group.is_static and other.is_static)
+    return not (group.static and other.static)
 
 
 def behaviour_features(description: TaskDescription) -> tuple[BehaviourFeature, ...]:
@@ -340,7 +340,7 @@ class StepFeatures:
         def shape(g: int) -> Shapes:
             if g in shapes:
                 return shapes[g]
-            fixed = self.fixed_static_geometry and groups[g].is_static
+            fixed = self.fixed_static_geometry and groups[g].static
             cached = self._static_shapes.get(g) if fixed else None
             if cached is not None and (trials is None or _shared(cached)):
                 shapes[g] = cached

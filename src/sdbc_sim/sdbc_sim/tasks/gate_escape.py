@@ -206,15 +206,35 @@ class GateEscape(Task):
             name=self.name,
             groups=(
                 EntityGroupSpec(
-                    "Agent",
-                    ("x", "y", "turning speed", "linear speed", "is passing gate"),
-                    0,
-                    n,
-                    False,
-                    Geometry.CIRCLE,
+                    name="Agent",
+                    attributes=(
+                        "x",
+                        "y",
+                        "turning speed",
+                        "linear speed",
+                        "is passing gate",
+                    ),
+                    min_size=0,
+                    max_size=n,
+                    static=False,
+                    geometry=Geometry.CIRCLE,
                 ),
-                EntityGroupSpec("Gate", ("is closing",), 1, 1, True, Geometry.POLYGON),
-                EntityGroupSpec("Wall", (), 1, 1, True, Geometry.POLYGON),
+                EntityGroupSpec(
+                    name="Gate",
+                    attributes=("is closing",),
+                    min_size=1,
+                    max_size=1,
+                    static=True,
+                    geometry=Geometry.POLYGON,
+                ),
+                EntityGroupSpec(
+                    name="Wall",
+                    attributes=(),
+                    min_size=1,
+                    max_size=1,
+                    static=True,
+                    geometry=Geometry.POLYGON,
+                ),
             ),
         )
         arc = TWO_PI / c.n_wall_rays

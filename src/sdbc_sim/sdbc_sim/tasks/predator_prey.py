@@ -226,9 +226,30 @@ class PredatorPrey(Task):
         self.description = TaskDescription(
             name=self.name,
             groups=(
-                EntityGroupSpec("Predators", attributes, n, n, False, Geometry.CIRCLE),
-                EntityGroupSpec("Prey", attributes, 0, 1, False, Geometry.CIRCLE),
-                EntityGroupSpec("Boundary", (), 1, 1, True, Geometry.POLYGON),
+                EntityGroupSpec(
+                    name="Predators",
+                    attributes=attributes,
+                    min_size=n,
+                    max_size=n,
+                    static=False,
+                    geometry=Geometry.CIRCLE,
+                ),
+                EntityGroupSpec(
+                    name="Prey",
+                    attributes=attributes,
+                    min_size=0,
+                    max_size=1,
+                    static=False,
+                    geometry=Geometry.CIRCLE,
+                ),
+                EntityGroupSpec(
+                    name="Boundary",
+                    attributes=(),
+                    min_size=1,
+                    max_size=1,
+                    static=True,
+                    geometry=Geometry.POLYGON,
+                ),
             ),
         )
         self._others = np.array(

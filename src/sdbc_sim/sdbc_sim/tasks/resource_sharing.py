@@ -320,8 +320,8 @@ class ResourceSharing(Task):
             name=self.name,
             groups=(
                 EntityGroupSpec(
-                    "Agent",
-                    (
+                    name="Agent",
+                    attributes=(
                         "x",
                         "y",
                         "turning speed",
@@ -329,13 +329,18 @@ class ResourceSharing(Task):
                         "energy level",
                         "is charging",
                     ),
-                    0,
-                    n,
-                    False,
-                    Geometry.CIRCLE,
+                    min_size=0,
+                    max_size=n,
+                    static=False,
+                    geometry=Geometry.CIRCLE,
                 ),
                 EntityGroupSpec(
-                    "Station", ("is occupied",), 1, 1, True, Geometry.CIRCLE
+                    name="Station",
+                    attributes=("is occupied",),
+                    min_size=1,
+                    max_size=1,
+                    static=True,
+                    geometry=Geometry.CIRCLE,
                 ),
             ),
         )
