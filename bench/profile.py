@@ -12,8 +12,8 @@ calls (so every part is exclusive and the parts add up):
 - chipmunk step: ``pymunk.Space.step``;
 - bulk transfer: the rest of ``TrialSpaces.read`` and ``TrialSpaces.step``
   (pymunk.batch reads and writes, the copies around them);
-- separation: ``TrialSpaces.separate`` (contacts read in bulk, projection, the
-  bodies moved back into pymunk);
+- separation: ``TrialSpaces.separate`` (contacts read in bulk, projection; the
+  projected positions reach pymunk with the next step's bulk write);
 - sensors: ``task.sensors``; network: ``TeamNetworks.forward``;
 - actuate: ``task.actuate``; drive: ``BatchSimulation._drive`` (headings and
   forces from speed and turn);

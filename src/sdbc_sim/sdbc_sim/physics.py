@@ -56,21 +56,16 @@ from sdbc_sim.sensors import norm, robot_sum, segment_offsets
 from sdbc_sim.task import Task
 
 _READ = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
-_WRITE = {
-    "velocity": pb.BodyFields.POSITION
-    | pb.BodyFields.ANGLE
-    | pb.BodyFields.VELOCITY
-    | pb.BodyFields.ANGULAR_VELOCITY,
-    "force": pb.BodyFields.POSITION
-    | pb.BodyFields.ANGLE
-    | pb.BodyFields.ANGULAR_VELOCITY
-    | pb.BodyFields.FORCE,
+_MOTION = {
+    "velocity": pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY,
+    "force": pb.BodyFields.ANGULAR_VELOCITY | pb.BodyFields.FORCE,
 }
-"""Fields written before each step, per actuation mode (pymunk.batch keeps the
-fields in the order POSITION, ANGLE, VELOCITY, ANGULAR_VELOCITY, FORCE: the
-position, then the drive row as DRIVE_COLUMNS lays it out)."""
+"""Fields written before every step, besides the angle, per actuation mode.
+pymunk.batch keeps the fields in the order POSITION, ANGLE, VELOCITY,
+ANGULAR_VELOCITY, FORCE: a write row is the position (only after a projection),
+then the drive row as DRIVE_COLUMNS lays it out."""
 _POSITION_WIDTH = 2
-"""The first columns of a Space's write rows: the position, written every step."""
+"""Columns of a position in a Space's write rows."""
 _IDS = pb.BodyFields.BODY_ID
 _CONTACT_IDS = (
     pb.ArbiterFields.BODY_A_ID
@@ -342,8 +337,10 @@ class _Space:
         self.shapes: dict[int, list[pymunk.Circle]] = {}
         self.perm: np.ndarray | None = None
         self.read_buf = pb.Buffer()
-        self.write_buf = pb.Buffer()
-        self.write = np.zeros((0, _POSITION_WIDTH + WRITE_WIDTH))
+        # Write rows without and with the position (after a projection).
+        self.write_bufs = (pb.Buffer(), pb.Buffer())
+        self.writes = (np.zeros((0, WRITE_WIDTH)), np.zeros((0, WRITE_WIDTH)))
+        self.moved = False
         self.n_extra = 0
         self.contact_buf = pb.Buffer()
         self.sorted_ids = np.zeros(0, dtype=np.uintp)
@@ -355,16 +352,20 @@ class _Space:
 
     def attach_write(self) -> None:
         """Counts the Space's bodies (dynamic first, then static) and gives pymunk
-        a zero-copy view of a (bodies, 2 + 4) array: position, then drive row.
-        Static bodies are written too: their rows keep the positions they have."""
+        zero-copy views of the write rows: (bodies, 4) drive rows, and (bodies, 2
+        + 4) with the position first. Static bodies are written too: their rows
+        keep the positions they have, and zero motion."""
         self.read_buf.clear()
         pb.get_space_bodies(self.space, _IDS | pb.BodyFields.POSITION, self.read_buf)
         total = len(memoryview(self.read_buf.int_buf()).cast("P"))
         self.n_extra = total - self.n_dynamic
-        self.write = np.zeros((total, _POSITION_WIDTH + WRITE_WIDTH))
         positions = np.frombuffer(self.read_buf.float_buf(), dtype=np.float64)
-        self.write[:, :_POSITION_WIDTH] = positions.reshape(total, _POSITION_WIDTH)
-        self.write_buf.set_float_buf(self.write.reshape(-1))
+        still = np.zeros((total, WRITE_WIDTH))
+        moved = np.zeros((total, _POSITION_WIDTH + WRITE_WIDTH))
+        moved[:, :_POSITION_WIDTH] = positions.reshape(total, _POSITION_WIDTH)
+        self.writes = (still, moved)
+        for buf, rows in zip(self.write_bufs, self.writes, strict=True):
+            buf.set_float_buf(rows.reshape(-1))
 
     def index_bodies(self) -> None:
         """Maps this Space's body order and body ids onto the engine's rows (its
@@ -430,6 +431,8 @@ class TrialSpaces:
         self.settings = settings
         n_trials, n_bodies = angle.shape
         self.n_bodies = n_bodies
+        fields = pb.BodyFields.ANGLE | _MOTION[settings.actuation]
+        self._fields = (fields, pb.BodyFields.POSITION | fields)
         diameter = 2.0 * float(np.max(radii))
         cell = settings.hash_cell or _next_power_of_two(diameter)
         self.grid = SlotGrid.fit(extent, margin=diameter + cell, cell=cell)
@@ -613,10 +616,14 @@ class TrialSpaces:
         )
         t, i = np.nonzero(np.any(new != pos, axis=-1))
         rows = trials[t] * n + i
-        # What pymunk will hold: the next step writes every body's position from
-        # ``out`` in bulk. Rounded as there, to world coordinates and back (exact:
-        # every world coordinate has the same exponent).
+        # What pymunk will hold: the next step writes every position of the
+        # Spaces that hold a moved body from ``out``, in bulk. Rounded as there,
+        # to world coordinates and back (exact: every world coordinate has the
+        # same exponent).
         out[rows, 0:2] = (new[t, i] + self._offsets[rows]) - self._offsets[rows]
+        for sp, span in self._ranges:
+            if np.any((rows >= span.start) & (rows < span.stop)):
+                sp.moved = True
 
     @property
     def drive_columns(self) -> DriveColumns:
@@ -626,24 +633,32 @@ class TrialSpaces:
     def step(self, drive: np.ndarray, state: np.ndarray) -> None:
         """Steps every Space once and reads it back into ``state``.
 
-        Before its step, every body gets its position from ``state`` (rows, 5),
-        as :meth:`read` and :meth:`separate` left it (a projection reaches pymunk
-        here, in bulk; trial-local plus offset gives back the same world
-        coordinate, so a body that was not moved is set where it is), and its
-        angle, angular velocity and velocity or force from ``drive`` (rows, 4, as
-        :attr:`drive_columns` lays them out). Right after its own step, while its
-        bodies are still in cache, each Space is read into ``state`` as
+        Before its step, every body gets its angle, angular velocity and velocity
+        or force from ``drive`` (rows, 4, as :attr:`drive_columns` lays them
+        out). (Its angular velocity stays 0: a turn written as one and integrated
+        by chipmunk would give the same heading, but enter the contact solver's
+        arithmetic and change results in the last bits.) In a Space where
+        :meth:`separate` moved a body, every body also gets its position from
+        ``state`` (rows, 5): the projection reaches pymunk here, in bulk
+        (trial-local plus offset gives back the same world coordinate, so a body
+        that was not moved is set where it is). Right after its own step, while
+        its bodies are still in cache, each Space is read into ``state`` as
         :meth:`read` does.
         """
         dt = self.settings.dt
-        fields = _WRITE[self.settings.actuation]
         offsets = self._offsets
         p = _POSITION_WIDTH
         for sp, rows in self._ranges:
             at = slice(0, rows.stop - rows.start) if sp.perm is None else sp.perm
-            sp.write[at, :p] = state[rows, 0:2] + offsets[rows]
-            sp.write[at, p:] = drive[rows]
-            pb.set_space_bodies(sp.space, fields, sp.write_buf)
+            moved = int(sp.moved)
+            write = sp.writes[moved]
+            if moved:
+                write[at, :p] = state[rows, 0:2] + offsets[rows]
+                write[at, p:] = drive[rows]
+            else:
+                write[at] = drive[rows]
+            pb.set_space_bodies(sp.space, self._fields[moved], sp.write_bufs[moved])
+            sp.moved = False
             sp.space.step(dt)
             self._read_space(sp, rows, state)
 
