@@ -3,12 +3,14 @@
 How to write a task
 ===================
 
-A task is one module in ``sdbc_sim/tasks/`` holding a settings class made with
+A task is a module holding a settings class made with
 :func:`sdbc_sim.settings.settings` (every number as a default with its docstring,
 its limits in the annotations, checks across fields in ``__post_init__``) and a
-:class:`Task` subclass with class attributes ``name`` and ``config_class``, and
-ends with ``TASK = MyTask``: the registry
-(:func:`sdbc_sim.tasks.make_task`) finds it there. It never touches the engine.
+:class:`Task` subclass with class attributes ``name``, ``config_class`` and
+``default_generations`` (and, optionally, ``sdbc_counterparts``). In
+``sdbc_sim/tasks/`` it ends with ``TASK = MyTask``; anywhere else it is named as
+``package.module:Class`` or ``path/file.py:Class``, or registered as an entry point
+(:mod:`sdbc_sim.tasks`). It never touches the engine.
 
 The engine owns the physics: every body of every trial is a pymunk circle driven
 through its velocity and heading, walls are static segments, and trials never
@@ -66,6 +68,7 @@ from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Self
 
@@ -167,7 +170,16 @@ class Task(ABC):
     characterisation, over a batch of trials. See the module docstring."""
 
     name: ClassVar[str]
+    """The task's registered name ("gate_escape"): run folders and reports use it."""
     config_class: ClassVar[type]
+    """Its settings class, made with :func:`sdbc_sim.settings.settings`."""
+    default_generations: ClassVar[int]
+    """Generations of a run when the configuration sets none (required)."""
+    sdbc_counterparts: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    """Optional: for a dimension of the task-specific characterisation (a name in
+    :attr:`characterisation_names`), the SDBC dimensions that measure the same
+    thing (e.g. ``"escaped fraction": ("Agent group size (F)",)``); the study's
+    relevance table marks them."""
     config: Any
     description: TaskDescription
     network: NetworkShape

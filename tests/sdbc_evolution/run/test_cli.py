@@ -209,3 +209,15 @@ def test_sigterm_to_the_command_alone_stops_it_and_resume_finishes(
     )
     assert resumed.returncode == 0, resumed.stderr
     assert read_generations(out)["generation"].tolist() == list(range(40))
+
+
+def test_list_tasks_names_every_registered_task(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from sdbc_sim.tasks import available_tasks
+
+    assert main(["--list-tasks"]) == 0
+    out = capsys.readouterr().out
+    for name, task_class in available_tasks().items():
+        assert f"{name}  (" in out
+        assert f"{task_class.default_generations} generations by default" in out

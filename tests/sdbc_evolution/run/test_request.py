@@ -63,3 +63,13 @@ def test_the_default_output_directory_is_numbered_when_taken(
     assert first == Path("results") / f"gate_escape-ns-sd+-seed{config.seed}"
     first.mkdir(parents=True)
     assert default_out(config) == first.with_name(first.name + "-2")
+
+
+def test_a_run_folder_is_named_after_the_task_whatever_names_it() -> None:
+    from sdbc_evolution.run.config import ExperimentConfig
+    from sdbc_evolution.run.request import default_out
+
+    by_module = ExperimentConfig(task="sdbc_sim.tasks.gate_escape:GateEscape", seed=3)
+    assert default_out(by_module).name.startswith("gate_escape-ns-sd+-seed3")
+    elsewhere = ExperimentConfig(task="drone/fleet", generations=3)
+    assert "/" not in default_out(elsewhere).name

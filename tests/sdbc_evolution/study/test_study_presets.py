@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from sdbc_evolution.run.config import DEFAULT_GENERATIONS, ExperimentConfig, Treatment
+from sdbc_evolution.run.config import ExperimentConfig, Treatment
+from sdbc_evolution.study.paper import PAPER_TASKS
 from sdbc_evolution.study.presets import (
     PRESET_NAMES,
     PresetError,
@@ -22,7 +23,7 @@ from study_helpers import TINY
 def test_shipped_presets_load_and_hold_every_task_and_treatment(name: str) -> None:
     preset = load_preset(name)
     assert preset.name == name
-    assert set(preset.tasks) == set(DEFAULT_GENERATIONS)
+    assert set(preset.tasks) == set(PAPER_TASKS)
     assert set(preset.treatments) == set(Treatment)
     assert preset.description
 
@@ -30,7 +31,7 @@ def test_shipped_presets_load_and_hold_every_task_and_treatment(name: str) -> No
 def test_paper_preset_is_spec_settings() -> None:
     paper = load_preset("paper")
     assert paper.runs == 20
-    for task, generations in DEFAULT_GENERATIONS.items():
+    for task, generations in zip(PAPER_TASKS, (500, 750, 750), strict=True):
         for treatment in Treatment:
             config = paper.experiment_config(task, treatment, 7)
             assert config == ExperimentConfig(

@@ -90,6 +90,7 @@ def load_graph_file(path: str | Path) -> GraphFile:
             that is not a mapping, each named.
     """
     from sdbc_sim.nodes.interface import format_task_config, parse_task_config
+    from sdbc_sim.tasks import task_reference
 
     path = Path(path)
     try:
@@ -124,6 +125,8 @@ def load_graph_file(path: str | Path) -> GraphFile:
             f"graph file {path}: name the task once for every node, as "
             f"'{SHARED_KEY}: {{ros__parameters: {{task: gate_escape}}}}'"
         )
+    # A task in a file of one's own, by its absolute path: every node finds it.
+    task = shared["task"] = task_reference(task)
     task_config = shared.get("task_config", {})
     if isinstance(task_config, str):
         try:

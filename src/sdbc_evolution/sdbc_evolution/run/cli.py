@@ -9,6 +9,8 @@ Examples::
 
     sdbc-evolve
     sdbc-evolve --task predator_prey --treatment fit --generations 100 --seed 3
+    sdbc-evolve --task my_tasks.py:Beacon --generations 20
+    sdbc-evolve --list-tasks
     sdbc-evolve --config configs/paper/gate_escape.yaml --treatment ns-ts --out runs/a
     sdbc-evolve --resume --out runs/a
     sdbc-evolve --config run.yaml --scheduler tcp://10.0.0.5:8786
@@ -58,7 +60,17 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--config", type=Path, help="YAML experiment configuration")
-    parser.add_argument("--task", help="task name (gate_escape, resource_sharing, ...)")
+    parser.add_argument(
+        "--task",
+        help="the task: a registered name (see --list-tasks), package.module:Class "
+        "or path/to/file.py:Class",
+    )
+    parser.add_argument(
+        "--list-tasks",
+        action="store_true",
+        help="list the registered tasks (this package's and the 'sdbc.tasks' entry "
+        "points) and exit",
+    )
     parser.add_argument(
         "--treatment", choices=[t.value for t in Treatment], help="treatment"
     )
@@ -97,8 +109,35 @@ def config_request(args: argparse.Namespace) -> ConfigRequest:
     )
 
 
+def list_tasks() -> str:
+    """One line per registered task: name, where it comes from, what it is."""
+    from sdbc_sim.tasks import available_tasks, package_tasks
+
+    ours = package_tasks()
+    lines = []
+    for name, task_class in sorted(available_tasks().items()):
+        origin = (
+            "this package"
+            if name in ours
+            else f"{task_class.__module__}:{task_class.__qualname__}"
+        )
+        summary = (task_class.__doc__ or "").strip().split("\n")[0]
+        lines.append(
+            f"{name}  ({origin}, {task_class.default_generations} "
+            f"generations by default)  {summary}".rstrip()
+        )
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.list_tasks:
+        try:
+            print(list_tasks())
+        except ValueError as error:
+            print(f"sdbc-evolve: error: {error}", file=sys.stderr)
+            return 2
+        return 0
     try:
         config = resolve_config(config_request(args))
         # The task's own settings too, so that a bad one stops before any run.

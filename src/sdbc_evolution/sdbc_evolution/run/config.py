@@ -59,15 +59,6 @@ class Treatment(str, Enum):
     """Novelty search (+ fitness) with the SDBC, weighted by mutual information."""
 
 
-DEFAULT_GENERATIONS: dict[str, int] = {
-    "gate_escape": 500,
-    "resource_sharing": 750,
-    "predator_prey": 750,
-}
-"""Generations per task in the paper's runs (docs/reference-setup.md); other tasks
-must set ``generations`` explicitly."""
-
-
 QUICKSTART_GENERATIONS = 40
 """Generations of the quick-start experiment."""
 QUICKSTART_POPULATION = 50
@@ -152,15 +143,15 @@ class ExperimentConfig:
     """One evolutionary run: a task, a treatment, the GA's settings and a seed."""
 
     task: Annotated[str, Field(min_length=1)] = "gate_escape"
-    """Task name in the ``sdbc_sim.tasks`` registry."""
+    """The task: a registered name, ``package.module:Class`` or
+    ``path/file.py:Class`` (made absolute here), see :mod:`sdbc_sim.tasks`."""
     task_config: dict[str, Any] = field(default_factory=dict)
     """Overrides of the task's own settings (checked against them by
     :func:`check_task_config`)."""
     treatment: Treatment = Treatment.NS_SD_PLUS
     """Which of the four treatments drives selection."""
     generations: PositiveInt | None = None
-    """Generations to run; None takes the task's default from
-    :data:`DEFAULT_GENERATIONS`."""
+    """Generations to run; None takes the task's ``default_generations``."""
     seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
     """Seed of the run: everything the run does is a function of (config, seed)."""
     ga: GaConfig = field(default_factory=GaConfig)
@@ -176,16 +167,32 @@ class ExperimentConfig:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     """Trials and re-evaluation."""
 
+    def __post_init__(self) -> None:
+        # A task in a file of one's own is named by its absolute path, so that
+        # workers, nodes and a later resume find it from any directory.
+        from sdbc_sim.tasks import task_reference
+
+        object.__setattr__(self, "task", task_reference(self.task))
+
     @property
     def resolved_generations(self) -> int:
-        """Generations to run, with the task's default filled in."""
+        """Generations to run, with the task's default filled in.
+
+        Raises:
+            ConfigError: ``generations`` is not set and the task names none of
+                this project's tasks (a task another system runs).
+        """
         if self.generations is not None:
             return self.generations
-        if self.task not in DEFAULT_GENERATIONS:
+        from sdbc_sim.tasks import find_task
+
+        task_class = find_task(self.task)
+        if task_class is None:
             raise ConfigError(
-                f"generations: task {self.task!r} has no default; set it explicitly"
+                f"generations: task {self.task!r} is not one this project knows, so "
+                "it has no default; set generations"
             )
-        return DEFAULT_GENERATIONS[self.task]
+        return task_class.default_generations
 
     def resolved(self) -> ExperimentConfig:
         """This configuration with every default filled in."""
@@ -214,15 +221,14 @@ def check_task_config(task: str, task_config: dict[str, Any]) -> None:
         ConfigError: An unknown task, or a bad setting named as
             ``task_config.NAME``.
     """
-    from sdbc_sim.tasks import available_tasks, task_settings
+    from sdbc_sim.tasks import UnknownTask, resolve_task, task_settings
 
-    tasks = available_tasks()
-    if task not in tasks:
-        raise ConfigError(
-            f"task: unknown task {task!r}; known tasks: {', '.join(sorted(tasks))}"
-        )
     try:
-        task_settings(tasks[task], task_config)
+        task_class = resolve_task(task)
+    except UnknownTask as error:
+        raise ConfigError(f"task: {error}") from None
+    try:
+        task_settings(task_class, task_config)
     except SettingsError as error:
         raise _config_error(error.prefixed("task_config")) from None
 

@@ -11,6 +11,7 @@ some settings overridden. Each fills a :class:`ConfigRequest` from its own input
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,10 +110,24 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
 
 def default_out(config: ExperimentConfig) -> Path:
     """``results/<task>-<treatment>-seed<seed>``, numbered if already taken."""
-    base = RESULTS_ROOT / f"{config.task}-{config.treatment.value}-seed{config.seed}"
+    base = (
+        RESULTS_ROOT
+        / f"{task_label(config.task)}-{config.treatment.value}-seed{config.seed}"
+    )
     if not base.exists():
         return base
     n = 2
     while (candidate := base.with_name(f"{base.name}-{n}")).exists():
         n += 1
     return candidate
+
+
+def task_label(reference: str) -> str:
+    """A name for ``reference`` fit for a folder: the task's registered ``name``
+    for a ``module:Class`` or ``file.py:Class`` reference, else the reference with
+    anything but letters, digits, ``-``, ``_`` and ``.`` replaced."""
+    from sdbc_sim.tasks import find_task
+
+    task_class = find_task(reference) if ":" in reference else None
+    label = task_class.name if task_class is not None else reference
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", label)

@@ -81,9 +81,11 @@ def characterisations_markdown(descriptions: Sequence[TaskDescription]) -> str:
 
 def registry_descriptions() -> list[TaskDescription]:
     """The description of every registered task, by task name."""
-    from sdbc_sim.tasks import available_tasks, make_task
+    from sdbc_sim.tasks import make_task, package_tasks
 
-    return [make_task(name).description for name in sorted(available_tasks())]
+    # This package's tasks only: the document must not change with what else is
+    # installed.
+    return [make_task(name).description for name in sorted(package_tasks())]
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -39,13 +39,13 @@ from sdbc_sim.settings import (
 )
 
 from sdbc_evolution.run.config import (
-    DEFAULT_GENERATIONS,
     ConfigError,
     ExperimentConfig,
     Treatment,
     check_task_config,
     config_from_dict,
 )
+from sdbc_evolution.study.paper import PAPER_TASKS
 
 PRESET_DIR = Path("configs") / "study"
 """Where the named presets live, relative to the repository root."""
@@ -73,12 +73,13 @@ class StudyPreset:
     """Independent runs per treatment and task."""
     seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
     """Study seed: every run's seed derives from it, its task, treatment and index."""
-    tasks: Annotated[tuple[str, ...], Field(min_length=1)] = tuple(DEFAULT_GENERATIONS)
-    """Tasks of the study, in the order they run."""
+    tasks: Annotated[tuple[str, ...], Field(min_length=1)] = PAPER_TASKS
+    """Tasks of the study, in the order they run: registered names or
+    ``package.module:Class`` references (see :mod:`sdbc_sim.tasks`)."""
     treatments: Annotated[tuple[Treatment, ...], Field(min_length=1)] = tuple(Treatment)
     """Treatments compared on every task."""
     generations: dict[str, PositiveInt] = field(default_factory=dict)
-    """Generations per task; a task left out takes the paper's number."""
+    """Generations per task; a task left out takes its ``default_generations``."""
     task_config: dict[str, dict[str, Any]] = field(default_factory=dict)
     """Settings of each task that differ from its defaults."""
     experiment: dict[str, Any] = field(default_factory=dict)
@@ -87,6 +88,17 @@ class StudyPreset:
 
     def __post_init__(self) -> None:
         check(len(set(self.tasks)) == len(self.tasks), "tasks", "has duplicates")
+        from sdbc_sim.tasks import is_file_reference
+
+        # Run folders and reports are named after the task reference.
+        files = [t for t in self.tasks if is_file_reference(t)]
+        check(
+            not files,
+            "tasks",
+            f"{files}: a study names its tasks by a registered name or "
+            "package.module:Class, not by a file (register the task as an entry "
+            "point, or put its folder on PYTHONPATH)",
+        )
         check(
             len(set(self.treatments)) == len(self.treatments),
             "treatments",
@@ -104,14 +116,20 @@ class StudyPreset:
         )
 
     def generations_of(self, task: str) -> int:
-        """Generations of every run on ``task``."""
+        """Generations of every run on ``task``: the preset's, or the task's
+        ``default_generations``.
+
+        Raises:
+            PresetError: The task names none of the known tasks.
+        """
         if task in self.generations:
             return self.generations[task]
-        if task not in DEFAULT_GENERATIONS:
-            raise PresetError(
-                f"generations.{task}: the task has no paper default; set it"
-            )
-        return DEFAULT_GENERATIONS[task]
+        from sdbc_sim.tasks import UnknownTask, resolve_task
+
+        try:
+            return resolve_task(task).default_generations
+        except UnknownTask as error:
+            raise PresetError(f"tasks: {error}") from None
 
     def experiment_config(
         self, task: str, treatment: Treatment, seed: int

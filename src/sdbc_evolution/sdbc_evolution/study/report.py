@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sdbc_evolution.run.config import DEFAULT_GENERATIONS, ExperimentConfig
+from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.study.claims import (
     LABELS,
     PAPER_RELEVANCE,
@@ -26,6 +26,7 @@ from sdbc_evolution.study.claims import (
     Claim,
     Verdict,
 )
+from sdbc_evolution.study.paper import paper_generations
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS, PresetError, load_preset_file
 from sdbc_evolution.study.relevance import TASK_SPECIFIC_FEATURES
@@ -78,7 +79,7 @@ def _sizes(analysis: Analysis) -> list[str]:
         per_treatment = ", ".join(
             f"{LABELS[t]} {runs[t]}" for t in ta.curves.treatments
         )
-        paper_gens = DEFAULT_GENERATIONS.get(ta.task)
+        paper_gens = paper_generations(ta.task)
         ours = (
             config.ga.population_size
             * config.evaluation.trials
@@ -351,7 +352,7 @@ def _differences(analysis: Analysis) -> list[str]:
     generations = " / ".join(
         str(study.of(t)[0].config.resolved_generations) for t in tasks
     )
-    paper_generations = " / ".join(str(DEFAULT_GENERATIONS.get(t, "?")) for t in tasks)
+    paper_gens = " / ".join(str(paper_generations(t) or "?") for t in tasks)
     lines = [
         "## Where we differ, and why we might",
         "",
@@ -371,7 +372,7 @@ def _differences(analysis: Analysis) -> list[str]:
         f"- **Scale.** Runs here have population {some.ga.population_size}, "
         f"{some.evaluation.trials} trials and {generations} generations, against "
         f"the paper's {PAPER.ga.population_size}, {PAPER.evaluation.trials} and "
-        f"{paper_generations}; and as few as {least} runs per treatment against "
+        f"{paper_gens}; and as few as {least} runs per treatment against "
         f"{PAPER_RUNS}. Differences that need long evolution to open up (the paper's "
         "NS-TS vs NS-SD+ gap is 'relatively small') cannot show, and a Mann-Whitney "
         "test on so few runs has little power: *inconclusive* means our runs cannot "

@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.config import (
-    DEFAULT_GENERATIONS,
     ConfigError,
     ExperimentConfig,
     Treatment,
@@ -42,6 +41,7 @@ from sdbc_evolution.run.results import (
     INDIVIDUALS_DIR,
     WEIGHT_PREFIX,
 )
+from sdbc_evolution.study.paper import PAPER_TASKS
 from sdbc_evolution.study.plan import STUDY_FILE, study_plan
 from sdbc_evolution.study.presets import PresetError, load_preset_file
 
@@ -236,7 +236,7 @@ class StudyData:
     def tasks(self) -> list[str]:
         """Tasks with at least one usable run, the paper's first, in its order."""
         found = set(r.task for r in self.runs)
-        known = [t for t in DEFAULT_GENERATIONS if t in found]
+        known = [t for t in PAPER_TASKS if t in found]
         return known + sorted(found - set(known))
 
     def of(self, task: str, treatment: Treatment | None = None) -> list[RunData]:

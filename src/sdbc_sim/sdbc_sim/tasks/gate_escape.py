@@ -179,6 +179,15 @@ class GateEscape(Task):
 
     name = "gate_escape"
     config_class = GateEscapeConfig
+    default_generations = 500
+    """Generations of the paper's runs."""
+    sdbc_counterparts = {
+        "escaped fraction": ("Agent group size (F)",),
+        # The trial ends a fixed gate_closing_steps after the gate starts closing.
+        "gate closing start / tau": ("Simulation length",),
+        "distance to gate / size": ("Agent-gate distance (M)",),
+        "distance to team centroid / (size / 2)": ("Agent dispersion (M)",),
+    }
 
     def __init__(self, config: GateEscapeConfig | None = None) -> None:
         c = self.config = config or GateEscapeConfig()

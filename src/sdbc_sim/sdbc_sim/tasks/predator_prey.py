@@ -193,6 +193,14 @@ class PredatorPrey(Task):
 
     name = "predator_prey"
     config_class = PredatorPreyConfig
+    default_generations = 750
+    """Generations of the paper's runs."""
+    sdbc_counterparts = {
+        "captured": ("Prey group size (F)",),
+        "trial length / tau": ("Simulation length",),
+        "final predator-prey distance / diagonal": ("Predators-prey distance (F)",),
+        "predator dispersion": ("Predators dispersion (M)",),
+    }
 
     def __init__(self, config: PredatorPreyConfig | None = None) -> None:
         c = self.config = config or PredatorPreyConfig()

@@ -298,6 +298,14 @@ class ResourceSharing(Task):
 
     name = "resource_sharing"
     config_class = ResourceSharingConfig
+    default_generations = 750
+    """Generations of the paper's runs."""
+    sdbc_counterparts = {
+        "survivor fraction": ("Agent group size (F)",),
+        "mean energy / max energy": ("Agent energy level (M)",),
+        "mean speed / max speed": ("Agent linear speed (M)",),
+        "distance to station / (size / 2)": ("Agent-station distance (M)",),
+    }
 
     def __init__(self, config: ResourceSharingConfig | None = None) -> None:
         c = self.config = config or ResourceSharingConfig()
