@@ -22,7 +22,7 @@ from matplotlib.patches import Circle  # noqa: E402
 from sdbc_sim.engine import EngineSettings, TrialStepper  # noqa: E402
 from sdbc_sim.network import check_genomes, forward  # noqa: E402
 from sdbc_sim.task import Task  # noqa: E402
-from sdbc_sim.task_state import Geometry, TaskState  # noqa: E402
+from sdbc_sim.task_state import Geometry, GroupState, TaskState  # noqa: E402
 
 _COLOURS = plt.rcParams["axes.prop_cycle"].by_key()["color"]
 
@@ -55,13 +55,18 @@ def record_trial(
     return states, bodies
 
 
+def _first_trial(array: np.ndarray | None) -> np.ndarray | None:
+    return None if array is None else np.array(array[:1], copy=True)
+
+
 def _copy_state(state: TaskState) -> TaskState:
     groups = tuple(
-        type(g)(
-            **{
-                k: None if v is None else np.array(v[:1], copy=True)
-                for k, v in vars(g).items()
-            }
+        GroupState(
+            present=np.array(g.present[:1], copy=True),
+            attributes=np.array(g.attributes[:1], copy=True),
+            centres=_first_trial(g.centres),
+            radii=_first_trial(g.radii),
+            segments=_first_trial(g.segments),
         )
         for g in state.groups
     )
@@ -116,15 +121,17 @@ def render_trial(
             colour = _COLOURS[g % len(_COLOURS)]
             present = np.broadcast_to(group.present, (1, spec.max_size))[0]
             if spec.geometry is Geometry.POLYGON:
-                segs = np.broadcast_to(group.segments, (1, *group.segments.shape[1:]))[
-                    0
-                ]
+                segments = group.shapes("segments")
+                segs = np.broadcast_to(segments, (1, *segments.shape[1:]))[0]
                 lines = segs[present].reshape(-1, 2, 2)
-                ax.add_collection(LineCollection(lines, colors=colour, linewidths=2))
+                ax.add_collection(
+                    LineCollection(list(lines), colors=colour, linewidths=2)
+                )
             else:
-                centres = group.centres[0][present]
+                centres = group.shapes("centres")[0][present]
                 if spec.geometry is Geometry.CIRCLE:
-                    rr = np.broadcast_to(group.radii, (1, spec.max_size))[0][present]
+                    radii_of = group.shapes("radii")
+                    rr = np.broadcast_to(radii_of, (1, spec.max_size))[0][present]
                     for c, r in zip(centres, rr, strict=True):
                         ax.add_patch(Circle(c, r, color=colour, alpha=0.5))
                 else:
@@ -134,7 +141,9 @@ def render_trial(
         heading = np.stack([pos, tips], axis=1)
         ax.add_collection(
             LineCollection(
-                heading, colors=np.where(enabled, "k", "0.7").tolist(), linewidths=1
+                list(heading),
+                colors=np.where(enabled, "k", "0.7").tolist(),
+                linewidths=1,
             )
         )
         for p, r, on in zip(pos, radii, enabled, strict=True):

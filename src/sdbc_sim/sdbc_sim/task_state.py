@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
+from typing import Literal
 
 import numpy as np
 
@@ -172,6 +173,17 @@ class GroupState:
     radii: np.ndarray | None = None
     segments: np.ndarray | None = None
 
+    def shapes(self, label: Literal["centres", "radii", "segments"]) -> np.ndarray:
+        """The array ``label``, which the group's geometry says it has.
+
+        Raises:
+            ValueError: The group has no such array.
+        """
+        array = getattr(self, label)
+        if array is None:
+            raise ValueError(f"entity group state: {label} is missing")
+        return array
+
 
 @dataclass
 class TaskState:
@@ -220,14 +232,16 @@ def validate_task_state(
     for spec, group in zip(description.groups, state.groups, strict=True):
         size = spec.max_size
         _check_array(description, state, spec, "present", group.present, (size,))
-        tail = (size, len(spec.attributes))
-        _check_array(description, state, spec, "attributes", group.attributes, tail)
+        attributes_tail = (size, len(spec.attributes))
+        _check_array(
+            description, state, spec, "attributes", group.attributes, attributes_tail
+        )
         if spec.geometry is Geometry.POLYGON:
             # Any number P >= 1 of segments per polygon.
             seg = group.segments
-            n_segments = seg.shape[2] if getattr(seg, "ndim", 0) == 5 else 0
-            tail = (size, max(n_segments, 1), 2, 2)
-            _check_array(description, state, spec, "segments", seg, tail)
+            n_segments = seg.shape[2] if seg is not None and seg.ndim == 5 else 0
+            segments_tail = (size, max(n_segments, 1), 2, 2)
+            _check_array(description, state, spec, "segments", seg, segments_tail)
         else:
             _check_array(description, state, spec, "centres", group.centres, (size, 2))
             if spec.geometry is Geometry.CIRCLE:

@@ -100,13 +100,13 @@ def task_state_to_msg(
         for s in np.flatnonzero(present):
             entity = Entity(state=attributes[s].tolist(), geometry=code)
             if spec.geometry is Geometry.POLYGON:
-                ends = _trial_row(group.segments, index)[s].reshape(-1, 2)
+                ends = _trial_row(group.shapes("segments"), index)[s].reshape(-1, 2)
                 entity.segments = [Point(x=float(x), y=float(y)) for x, y in ends]
             else:
-                x, y = _trial_row(group.centres, index)[s]
+                x, y = _trial_row(group.shapes("centres"), index)[s]
                 entity.centre = Point(x=float(x), y=float(y))
                 if spec.geometry is Geometry.CIRCLE:
-                    entity.radius = float(_trial_row(group.radii, index)[s])
+                    entity.radius = float(_trial_row(group.shapes("radii"), index)[s])
             entities.append(entity)
         msg.groups.append(
             EntityGroup(

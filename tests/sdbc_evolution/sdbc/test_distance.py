@@ -17,7 +17,7 @@ def disc(x: float, y: float, r: float | None) -> Discs:
 def polygon(*segments: tuple[tuple[float, float], tuple[float, float]]) -> Segments:
     """One polygon entity (S = 1, B = 1) with P segments."""
     seg = np.array(segments, dtype=float)  # (P, 2, 2)
-    return Segments(
+    return Segments.between(
         ax=seg[:, 0, 0, None, None],
         ay=seg[:, 0, 1, None, None],
         bx=seg[:, 1, 0, None, None],
@@ -109,7 +109,7 @@ def test_batch_broadcast_and_workspace_reuse() -> None:
     x = np.array([[0.0, 1.0, 2.0], [5.0, 6.0, 7.0]])  # (S, B)
     y = np.full((2, 3), 3.0)
     circles = Discs(x=x[:, None], y=y[:, None], r=np.full((2, 1, 3), 1.0))
-    floor = Segments(
+    floor = Segments.between(
         ax=np.full((1, 1, 1, 1), -100.0),
         ay=np.zeros((1, 1, 1, 1)),
         bx=np.full((1, 1, 1, 1), 100.0),

@@ -95,7 +95,7 @@ class NoveltyArchive:
             )
         if len(self) == 0:
             self.behaviours = np.zeros((0, behaviours.shape[1]))
-        added = rng.random(behaviours.shape[0]) < self.probability
+        added = rng.random(len(behaviours)) < self.probability
         if self.capacity == 0:
             return np.zeros_like(added)
         for i in np.flatnonzero(added):

@@ -80,7 +80,8 @@ class SdbcExtractor:
         self._features: StepFeatures | None = None
         self._aggregator: TrialAggregator | None = None
         self._step = 0
-        self._previous_active: np.ndarray | None = None
+        # Set by start(); observe() and the results refuse to run before it.
+        self._previous_active = np.zeros(0, dtype=bool)
 
     def start(self, description: TaskDescription, n_trials: int) -> None:
         """Prepares for a batch of ``n_trials`` trials of the described task."""
@@ -126,11 +127,17 @@ class SdbcExtractor:
             raise RuntimeError("SDBC extractor: start() was not called")
         return self._features
 
+    def _aggregating(self) -> TrialAggregator:
+        if self._aggregator is None:
+            raise RuntimeError("SDBC extractor: start() was not called")
+        return self._aggregator
+
     def observe(self, state: TaskState) -> None:
         """Adds the step ``state.step`` of every active trial."""
         features = self._started()
+        aggregator = self._aggregating()
         description = features.description
-        n_trials = self._aggregator.n_trials
+        n_trials = aggregator.n_trials
         validate_task_state(description, state, n_trials)
         if state.step != self._step + 1:
             raise ValueError(
@@ -149,21 +156,21 @@ class SdbcExtractor:
             total, count = features.compute(state)
             if self.check_values:
                 self._check(state, total)
-            self._aggregator.update_from_totals(total, count, active)
+            aggregator.update_from_totals(total, count, active)
         elif n_active > 0:
             trials = np.flatnonzero(active)
             total, count = features.compute(state, self._padded(trials))
             total, count = total[:, :n_active], count[:, :n_active]
             if self.check_values:
                 self._check(state, total, trials)
-            self._aggregator.update_trials(trials, total, count)
+            aggregator.update_trials(trials, total, count)
         self._step = state.step
         self._previous_active = active.copy()
 
     def _padded(self, trials: np.ndarray) -> np.ndarray:
         """``trials`` padded by repeating the first to the next of a few sizes
         (B/2, B/4, ...), so that the scratch arrays come in a few shapes only."""
-        size = self._aggregator.n_trials
+        size = self._aggregating().n_trials
         while size // 2 >= trials.shape[0]:
             size //= 2
         padded = np.full(size, trials[0])
@@ -174,7 +181,8 @@ class SdbcExtractor:
         self, state: TaskState, total: np.ndarray, trials: np.ndarray | None = None
     ) -> None:
         """``total`` covers the batch, or only ``trials`` (all active)."""
-        description = self._features.description
+        features = self._started()
+        description = features.description
         active = state.active
         bad = (
             ~np.isfinite(total) if trials is not None else ~np.isfinite(total) & active
@@ -184,7 +192,7 @@ class SdbcExtractor:
             trial = column if trials is None else trials[column]
             raise ValueError(
                 f"SDBC extractor, task {description.name!r}, step {state.step}, trial "
-                f"{trial}: feature {self._features.features[f].name!r} is not "
+                f"{trial}: feature {features.features[f].name!r} is not "
                 "finite; a present entity has a NaN or infinite attribute or coordinate"
             )
         for spec, group in zip(description.groups, state.groups, strict=True):
@@ -207,10 +215,8 @@ class SdbcExtractor:
     @property
     def lengths(self) -> np.ndarray:
         """(B,) int: steps taken by each trial so far."""
-        self._started()
-        return self._aggregator.lengths
+        return self._aggregating().lengths
 
     def characterisations(self) -> np.ndarray:
         """(B, D) raw characterisations ``[means, finals, length]`` so far."""
-        self._started()
-        return self._aggregator.result()
+        return self._aggregating().result()

@@ -30,6 +30,7 @@ from collections.abc import Hashable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import DTypeLike
 from sdbc_sim.task_state import Geometry, GroupState
 
 
@@ -40,7 +41,7 @@ class Workspace:
         self._arrays: dict[tuple, np.ndarray] = {}
 
     def get(
-        self, key: Hashable, shape: tuple[int, ...], dtype: type = np.float64
+        self, key: Hashable, shape: tuple[int, ...], dtype: DTypeLike = np.float64
     ) -> np.ndarray:
         """An uninitialised array for ``key``, the same one at every call with the
         same key, shape and dtype."""
@@ -77,30 +78,32 @@ class Segments:
         ay: y of every segment's first end point, shaped as ``ax``.
         bx: x of every segment's second end point, shaped as ``ax``.
         by: y of every segment's second end point, shaped as ``ax``.
-        abx: ``bx - ax``; computed if not given.
-        aby: ``by - ay``; computed if not given.
-        inverse: ``1 / |b - a|^2``, 0 for a degenerate segment; computed if not given.
+        abx: ``bx - ax``.
+        aby: ``by - ay``.
+        inverse: ``1 / |b - a|^2``, 0 for a degenerate segment.
+
+    :meth:`between` computes the last three; views and picks of segments
+    (:func:`expand`, :func:`pick`) carry them along instead.
     """
 
     ax: np.ndarray
     ay: np.ndarray
     bx: np.ndarray
     by: np.ndarray
-    abx: np.ndarray | None = None
-    aby: np.ndarray | None = None
-    inverse: np.ndarray | None = None
+    abx: np.ndarray
+    aby: np.ndarray
+    inverse: np.ndarray
 
-    def __post_init__(self) -> None:
-        if self.abx is None or self.aby is None or self.inverse is None:
-            abx = self.bx - self.ax
-            aby = self.by - self.ay
-            length2 = abx * abx + aby * aby
-            inverse = np.divide(
-                1.0, length2, out=np.zeros_like(length2), where=length2 > 0
-            )
-            object.__setattr__(self, "abx", abx)
-            object.__setattr__(self, "aby", aby)
-            object.__setattr__(self, "inverse", inverse)
+    @classmethod
+    def between(
+        cls, ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray
+    ) -> Segments:
+        """The segments from (ax, ay) to (bx, by)."""
+        abx = bx - ax
+        aby = by - ay
+        length2 = abx * abx + aby * aby
+        inverse = np.divide(1.0, length2, out=np.zeros_like(length2), where=length2 > 0)
+        return cls(ax, ay, bx, by, abx, aby, inverse)
 
     def arrays(self) -> tuple[np.ndarray, ...]:
         """All seven arrays, in field order."""
@@ -127,17 +130,17 @@ def group_shapes(
     """
     if geometry is Geometry.POLYGON:
         # (B, S, P, 2 ends, 2 coordinates) -> (2, 2, P, S, B).
-        source = group.segments.transpose(3, 4, 2, 1, 0)
+        source = group.shapes("segments").transpose(3, 4, 2, 1, 0)
         seg = workspace.get((key, "segments"), source.shape)
         np.copyto(seg, source)
-        return Segments(ax=seg[0, 0], ay=seg[0, 1], bx=seg[1, 0], by=seg[1, 1])
-    source = group.centres.transpose(2, 1, 0)
+        return Segments.between(ax=seg[0, 0], ay=seg[0, 1], bx=seg[1, 0], by=seg[1, 1])
+    source = group.shapes("centres").transpose(2, 1, 0)
     centres = workspace.get((key, "centres"), source.shape)
     np.copyto(centres, source)
     radius = None
     if geometry is Geometry.CIRCLE:
         radius = workspace.get((key, "radii"), source.shape[1:])
-        np.copyto(radius, group.radii.T)
+        np.copyto(radius, group.shapes("radii").T)
     return Discs(x=centres[0], y=centres[1], r=radius)
 
 
@@ -162,11 +165,12 @@ def pick(
 def expand(shapes: Shapes, axis: int) -> Shapes:
     """The shapes with a broadcast axis inserted at slot axis ``axis`` (0 or 1; a
     view)."""
+    # Segments have their segment axis before the slot axes.
+    lead: tuple[slice, ...] = () if isinstance(shapes, Discs) else (slice(None),)
+    index = (*lead, None) if axis == 0 else (*lead, slice(None), None)
     if isinstance(shapes, Discs):
-        index = (None,) if axis == 0 else (slice(None), None)
         r = None if shapes.r is None else shapes.r[index]
         return Discs(x=shapes.x[index], y=shapes.y[index], r=r)
-    index = (slice(None), None) if axis == 0 else (slice(None), slice(None), None)
     return Segments(*(v[index] for v in shapes.arrays()))
 
 
@@ -279,17 +283,26 @@ def entity_distance(
             d -= a.r
         if b.r is not None:
             d -= b.r
-    elif isinstance(a, Discs) or isinstance(b, Discs):
-        discs, poly = (a, b) if isinstance(a, Discs) else (b, a)
+    elif isinstance(a, Segments) and isinstance(b, Segments):
+        # a's segments on axis 0, b's on a new axis 1: the least over both.
+        sa = Segments(*(v[:, None] for v in a.arrays()))
+        sb = Segments(*(v[None] for v in b.arrays()))
+        d = np.sqrt(segment_segment_distance2(sa, sb).min(axis=(0, 1)))
+    else:
+        discs, poly = _disc_and_polygon(a, b)
         # The polygon's segment axis leads: the least over it is a row-wise minimum.
         d2 = point_segment_distance2(discs.x[None], discs.y[None], poly, ws, key)
         d = np.minimum.reduce(d2, axis=0, out=ws.get((key, "d"), d2.shape[1:]))
         np.sqrt(d, out=d)
         if discs.r is not None:
             d -= discs.r
-    else:
-        # a's segments on axis 0, b's on a new axis 1: the least over both.
-        sa = Segments(*(v[:, None] for v in a.arrays()))
-        sb = Segments(*(v[None] for v in b.arrays()))
-        d = np.sqrt(segment_segment_distance2(sa, sb).min(axis=(0, 1)))
     return np.maximum(d, 0.0, out=d)
+
+
+def _disc_and_polygon(a: Shapes, b: Shapes) -> tuple[Discs, Segments]:
+    """``a`` and ``b``, one of discs and one of segments, in that order."""
+    if isinstance(a, Discs) and isinstance(b, Segments):
+        return a, b
+    if isinstance(b, Discs) and isinstance(a, Segments):
+        return b, a
+    raise TypeError(f"expected discs and segments, got {type(a)} and {type(b)}")

@@ -82,6 +82,13 @@ class BehaviourFeature:
     attribute: int | None = None
     other: int | None = None
 
+    @property
+    def second_group(self) -> int:
+        """``other``, which a GROUP_DISTANCE feature always has."""
+        if self.other is None:
+            raise ValueError(f"feature {self.name!r} has no second group")
+        return self.other
+
 
 def _lower_initial(name: str) -> str:
     """``"Prey"`` -> ``"prey"``; acronyms such as ``"GPS beacon"`` stay as they are."""
@@ -104,9 +111,13 @@ def feature_name(
     if kind is FeatureKind.GROUP_SIZE:
         return f"{spec.name} group size"
     if kind is FeatureKind.MEAN_STATE:
+        if attribute is None:
+            raise ValueError(f"feature of {spec.name!r}: a mean state needs attribute")
         return f"{spec.name} {spec.attributes[attribute]}"
     if kind is FeatureKind.DISPERSION:
         return f"{spec.name} dispersion"
+    if other is None:
+        raise ValueError(f"feature of {spec.name!r}: a distance needs the other group")
     return f"{spec.name}-{_lower_initial(description.groups[other].name)} distance"
 
 
@@ -244,21 +255,24 @@ class StepFeatures:
         ws = self._workspace
         n_trials = state.active.shape[0]
 
-        def take(g: int, name: str, array: np.ndarray | None) -> np.ndarray | None:
-            if array is None or array.shape[0] != n_trials:
+        def take(g: int, name: str, array: np.ndarray) -> np.ndarray:
+            if array.shape[0] != n_trials:
                 return array  # shared by every trial
             out = ws.get(
                 ("gathered", g, name), trials.shape + array.shape[1:], array.dtype
             )
             return np.take(array, trials, axis=0, out=out)
 
+        def take_any(g: int, name: str, array: np.ndarray | None) -> np.ndarray | None:
+            return None if array is None else take(g, name, array)
+
         groups = tuple(
             GroupState(
                 present=take(g, "present", group.present),
                 attributes=take(g, "attributes", group.attributes),
-                centres=take(g, "centres", group.centres),
-                radii=take(g, "radii", group.radii),
-                segments=take(g, "segments", group.segments),
+                centres=take_any(g, "centres", group.centres),
+                radii=take_any(g, "radii", group.radii),
+                segments=take_any(g, "segments", group.segments),
             )
             for g, group in enumerate(state.groups)
         )
@@ -278,8 +292,9 @@ class StepFeatures:
             return n
         if feature.kind is FeatureKind.DISPERSION:
             return n * (n - 1.0) / 2.0
-        if self._full[feature.other]:
-            return n * groups[feature.other].max_size
+        other = feature.second_group
+        if self._full[other]:
+            return n * groups[other].max_size
         return None
 
     def compute(
@@ -403,7 +418,7 @@ class StepFeatures:
                 reduce_into(f, d, (0,))
             else:
                 # Eq. 5: the mean over all pairs of present entities of g and h.
-                h = feature.other
+                h = feature.second_group
                 d = entity_distance(expand(shape(g), 1), expand(shape(h), 0), ws, f)
                 if not (full[g] and full[h]):
                     if full[g]:

@@ -119,10 +119,12 @@ class MessageSdbcExtractor:
             ValueError: On a message that does not fit the description, or a step
                 out of order within its trial (a lost message would bias the vector).
         """
-        if self.description is None:
-            self.description = self._describe(msg)
+        description = self.description
+        if description is None:
+            description = self._describe(msg)
         elif self._unknown_geometry:
-            self._learn_geometries(msg)
+            description = self._learn_geometries(description, msg)
+        self.description = description
         trial_id = int(msg.trial_id)
         extractor = self._trials.get(trial_id)
         if extractor is None:
@@ -132,10 +134,10 @@ class MessageSdbcExtractor:
                     f"{msg.step}; a trial's messages must start at step 1"
                 )
             extractor = SdbcExtractor(fixed_static_geometry=False)
-            extractor.start(self.description, 1)
+            extractor.start(description, 1)
             self._trials[trial_id] = extractor
         try:
-            extractor.observe(task_state_from_msg(msg, self.description))
+            extractor.observe(task_state_from_msg(msg, description))
         except ValueError:
             del self._trials[trial_id]
             raise
@@ -161,10 +163,12 @@ class MessageSdbcExtractor:
                 self._unknown_geometry.add(group.name)
         return task_description_from_msg(msg, geometries)
 
-    def _learn_geometries(self, msg: Any) -> None:
-        """Completes the description with the geometry of groups whose first entity
-        is in ``msg``, and continues every open trial under it."""
-        groups = list(self.description.groups)
+    def _learn_geometries(
+        self, description: TaskDescription, msg: Any
+    ) -> TaskDescription:
+        """``description`` completed with the geometry of groups whose first entity
+        is in ``msg``; every open trial continues under it."""
+        groups = list(description.groups)
         learnt = False
         for g, group in enumerate(msg.groups[: len(groups)]):
             name = groups[g].name
@@ -180,11 +184,10 @@ class MessageSdbcExtractor:
             self._unknown_geometry.discard(name)
             learnt = True
         if learnt:
-            self.description = dataclasses.replace(
-                self.description, groups=tuple(groups)
-            )
+            description = dataclasses.replace(description, groups=tuple(groups))
             for extractor in self._trials.values():
-                extractor.redescribe(self.description)
+                extractor.redescribe(description)
+        return description
 
 
 def characterise_messages(

@@ -51,7 +51,7 @@ def domination_matrix(objectives: np.ndarray) -> np.ndarray:
     objectives = _check_objectives(objectives)
     a = objectives[:, None, :]
     b = objectives[None, :, :]
-    return (a >= b).all(axis=2) & (a > b).any(axis=2)
+    return np.asarray((a >= b).all(axis=2) & (a > b).any(axis=2))
 
 
 def non_dominated_fronts(objectives: np.ndarray) -> np.ndarray:
