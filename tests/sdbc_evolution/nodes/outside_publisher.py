@@ -19,6 +19,8 @@ TASK = "buoy_patrol"
 TRIALS = {11: 40, 12: 55, 13: 30}
 """Trial id: length. Trial 13 never sends done."""
 WITHOUT_DONE = 13
+GAP = (14, 20, 5)
+"""Trial 14 of 20 steps loses its step 5: it must be dropped, not characterised."""
 
 
 def _trial_messages(trial_id: int, length: int) -> list:
@@ -106,11 +108,16 @@ def _trial_messages(trial_id: int, length: int) -> list:
     return messages
 
 
-def scripted_trials() -> list:
+def scripted_trials(with_gap: bool = True) -> list:
     """Every message, trials interleaved step by step."""
     per_trial = [_trial_messages(t, n) for t, n in TRIALS.items()]
+    if with_gap:
+        trial_id, length, lost = GAP
+        per_trial.append(
+            [m for m in _trial_messages(trial_id, length) if m.step != lost]
+        )
     order = []
-    for step in range(max(TRIALS.values())):
+    for step in range(max(len(m) for m in per_trial)):
         order.extend(m[step] for m in per_trial if step < len(m))
     return order
 

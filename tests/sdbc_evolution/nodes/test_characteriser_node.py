@@ -39,7 +39,7 @@ def expected_vectors() -> tuple[dict[int, np.ndarray], tuple[str, ...]]:
 
     extractor = MessageSdbcExtractor()
     vectors = {}
-    for msg in scripted_trials():
+    for msg in scripted_trials(with_gap=False):
         vector = extractor.add(msg)
         if vector is not None:
             vectors[msg.trial_id] = vector
@@ -56,7 +56,7 @@ def test_characteriser_on_an_outside_publisher(tmp_path, ros_home) -> None:
     from sdbc_msgs.msg import Characterisation
 
     sys.path.insert(0, str(HERE))
-    from outside_publisher import TASK, TRIALS, WITHOUT_DONE
+    from outside_publisher import GAP, TASK, TRIALS, WITHOUT_DONE
 
     expected, names = expected_vectors()
     assert "Drone-buoy distance (M)" in names and "Drone-intruder distance (F)" in names
@@ -118,4 +118,27 @@ def test_characteriser_on_an_outside_publisher(tmp_path, ros_home) -> None:
             np.asarray(msg.values), expected[trial_id], rtol=0, atol=1e-12
         )
     assert f"trial {WITHOUT_DONE}: no message for" in node_log
+    # The trial that lost a step is dropped with the reason, never published.
+    assert f"trial {GAP[0]} dropped, not characterised" in node_log
+    assert f"step {GAP[2] + 1} follows step {GAP[2] - 1}" in node_log
     assert "published as incomplete" in node_log
+
+
+def test_an_unknown_aggregation_is_refused(ros_home) -> None:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sdbc_evolution.nodes.characteriser_node",
+            "--ros-args",
+            "-p",
+            "aggregation:=median",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert "parameter aggregation: 'median' is not one of mean+final" in done.stderr

@@ -111,3 +111,28 @@ def test_evolution_through_an_outside_simulator_twice(tmp_path, ros_home) -> Non
     assert individuals[0].keys() == individuals[1].keys()
     for key, values in individuals[0].items():
         np.testing.assert_array_equal(values, individuals[1][key], key)
+
+
+@pytest.mark.parametrize(
+    ("parameters", "message"),
+    [
+        (
+            ["evaluator:=local", "robots:=2", "genome_length:=6"],
+            "it can only be evaluated live",
+        ),
+        (["evaluator:=live", "robots:=2"], "robots and genome_length must be set"),
+    ],
+    ids=["not-live", "no-genome-length"],
+)
+def test_another_systems_task_needs_live_robots_and_genome_length(
+    ros_home, parameters: list[str], message: str
+) -> None:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    argv = [sys.executable, "-m", "sdbc_evolution.nodes.evolution_node"]
+    argv += ["--ros-args", "-p", "task:=point_chase", "-p", "generations:=2"]
+    for parameter in parameters:
+        argv += ["-p", parameter]
+    done = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "task 'point_chase' is not one of this project's" in done.stderr
+    assert message in done.stderr
