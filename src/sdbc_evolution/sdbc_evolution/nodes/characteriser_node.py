@@ -39,21 +39,16 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sdbc_sim.nodes.interface import (
     CHARACTERISATION_QOS,
     CHARACTERISATION_TOPIC,
     CHARACTERISER_NODE,
     TASK_STATE_QOS,
     TASK_STATE_TOPIC,
-    UsageError,
-    split_ros_arguments,
 )
-from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
+from sdbc_sim.nodes.startup import NodeProgram, run_node_program, spin_until_stopped
 
 from sdbc_evolution.sdbc.messages import MessageSdbcExtractor
 from sdbc_msgs.msg import Characterisation, TaskState
@@ -65,8 +60,6 @@ DEFAULT_TRIAL_TIMEOUT = 10.0
 """Seconds without a message after which an open trial is ended as incomplete."""
 MAX_TIMEOUT = 3600.0
 """Largest ``trial_timeout`` accepted, seconds."""
-SIGNAL_POLL = 0.2
-"""Seconds the executor waits at most, so that Ctrl-C is seen that soon."""
 
 
 class CharacteriserNode(Node):
@@ -185,36 +178,17 @@ class CharacteriserNode(Node):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    try:
-        argv, _ = split_ros_arguments("characteriser_node", argv)
-    except UsageError as error:
-        print(error, file=sys.stderr)
-        return 2
     # Ctrl-C stops the node but keeps the context up, so that the last
     # characterisations still reach their readers before it leaves.
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    stop = StopSignals(rclpy.get_default_context()).install()
-    node: CharacteriserNode | None = None
-    executor = SingleThreadedExecutor()
-    try:
-        node = CharacteriserNode()
-        executor.add_node(node)
-        # Bounded waits: Python runs the signal handler only between them.
-        while not stop.requested.is_set():
-            executor.spin_once(timeout_sec=SIGNAL_POLL)
-    except ValueError as error:
-        print(f"characteriser_node: error: {error}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        if node is not None:
-            flush_publishers([node.output])
-            node.destroy_node()
-        stop.destroy()
-        rclpy.try_shutdown()
-    return 0
+    return run_node_program(
+        NodeProgram(
+            name="characteriser_node",
+            make_nodes=lambda startup: [CharacteriserNode()],
+            serve=spin_until_stopped,
+            flush=lambda node: [node.output],
+        ),
+        argv,
+    )
 
 
 if __name__ == "__main__":

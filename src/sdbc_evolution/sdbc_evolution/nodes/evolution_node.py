@@ -47,10 +47,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sdbc_sim.nodes.interface import (
     BEST_GENOME_TOPIC,
@@ -59,10 +58,9 @@ from sdbc_sim.nodes.interface import (
     GENERATION_STATS_TOPIC,
     LATCHED_QOS,
     REPLAY_BEST_SERVICE,
-    UsageError,
     parse_task_config,
-    split_ros_arguments,
 )
+from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import available_tasks, find_task
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
@@ -417,46 +415,38 @@ class EvolutionNode(Node):
         return response
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def _run_experiment(startup: Startup, nodes: Sequence[EvolutionNode]) -> int:
+    """Runs the experiment in a thread of its own while the executor serves the
+    replay service and the graph client's answers."""
+    node = nodes[0]
+    thread = threading.Thread(target=node.run, name="experiment", daemon=True)
+    thread.start()
     try:
-        argv, _ = split_ros_arguments("evolution_node", argv)
-    except UsageError as error:
-        print(error, file=sys.stderr)
-        return 2
-    rclpy.init(args=argv)
-    node: EvolutionNode | None = None
-    # Threads for the replay service and the graph client's answers, while the
-    # experiment runs in a thread of its own.
-    executor = MultiThreadedExecutor(num_threads=3)
-    thread: threading.Thread | None = None
-    status = 0
-    try:
-        node = EvolutionNode()
-        executor.add_node(node)
-        thread = threading.Thread(target=node.run, name="experiment", daemon=True)
-        thread.start()
         while not (node.finished.is_set() and node.exit_when_done):
-            executor.spin_once(timeout_sec=0.2)
-        status = 1 if node.failure else 0
-    except ValueError as error:
-        print(f"evolution_node: error: {error}", file=sys.stderr)
-        return 2
+            startup.executor.spin_once(timeout_sec=0.2)
+        return 1 if node.failure else 0
     except (KeyboardInterrupt, ExternalShutdownException):
-        if node is not None:
-            node.stop.set()
-            print(
-                "evolution_node: interrupted; resume with resume:=true "
-                f"output:={node.out}",
-                file=sys.stderr,
-            )
+        node.stop.set()
+        print(
+            f"evolution_node: interrupted; resume with resume:=true output:={node.out}",
+            file=sys.stderr,
+        )
+        return 0
     finally:
-        if thread is not None:
-            thread.join(STOP_WAIT)
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return status
+        thread.join(STOP_WAIT)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_node_program(
+        NodeProgram(
+            name="evolution_node",
+            make_nodes=lambda startup: [EvolutionNode()],
+            serve=_run_experiment,
+            threads=3,
+            signals="rclpy",
+        ),
+        argv,
+    )
 
 
 if __name__ == "__main__":

@@ -42,27 +42,24 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import rclpy
 from rclpy.callback_groups import CallbackGroup
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from sdbc_sim.nodes.interface import (
     LATCHED_QOS,
     RECORDER_NODE,
     RECORDER_READY_TOPIC,
     TASK_STATE_QOS,
-    UsageError,
-    split_ros_arguments,
 )
+from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 from std_msgs.msg import Bool
 
 from sdbc_evolution.graph.bags import BagWriter, bag_qos, message_class
@@ -277,42 +274,42 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    try:
-        argv, plain = split_ros_arguments("recorder", argv, allow_plain=True)
-    except UsageError as error:
-        print(error, file=sys.stderr)
-        return 2
-    args = build_parser().parse_args(plain)
+def _make_nodes(startup: Startup) -> Iterator[RecorderNode]:
+    node = RecorderNode(startup.args.output, startup.args.topics)
     # Ctrl-C and SIGTERM do not interrupt the recording loop where it stands (a
     # message taken but not written would be lost): they ask it to stop.
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    node: RecorderNode | None = None
-    # The services (parameters, type description) are answered by an executor in
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_, node=node: node.request_stop())
+    yield node
+
+
+def _record(startup: Startup, nodes: Sequence[RecorderNode]) -> int:
+    # The services (parameters, type description) are answered by the executor in
     # a thread of their own; the messages by the recording loop.
-    executor = SingleThreadedExecutor()
-    services = threading.Thread(target=executor.spin, name="services", daemon=True)
-    try:
-        node = RecorderNode(args.output, args.topics)
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, lambda *_, node=node: node.request_stop())
-        executor.add_node(node)
-        services.start()
-        node.record()
-    except (ValueError, FileExistsError, LookupError) as error:
-        print(f"recorder: error: {error}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            # The bag first: the executor may be slow to stop, the data must not be.
-            node.close()
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    threading.Thread(target=startup.executor.spin, name="services", daemon=True).start()
+    nodes[0].record()
     return 0
+
+
+def _close(nodes: Sequence[RecorderNode]) -> None:
+    # The bag first: the executor may be slow to stop, the data must not be.
+    for node in nodes:
+        node.close()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return run_node_program(
+        NodeProgram(
+            name="recorder",
+            make_nodes=_make_nodes,
+            serve=_record,
+            parser=build_parser(),
+            signals="own",
+            errors=(ValueError, FileExistsError, LookupError),
+            close=_close,
+        ),
+        argv,
+    )
 
 
 if __name__ == "__main__":

@@ -33,10 +33,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.exceptions import (
     InvalidParameterTypeException,
@@ -44,13 +43,10 @@ from rclpy.exceptions import (
 )
 from rclpy.executors import (
     Executor,
-    ExternalShutdownException,
-    SingleThreadedExecutor,
 )
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 
 from sdbc_msgs.msg import RobotCommand, SensorReadings
 from sdbc_sim.network import NetworkShape, forward
@@ -60,12 +56,11 @@ from sdbc_sim.nodes.interface import (
     LOCKSTEP_PUBLISHER_QOS,
     LOCKSTEP_QOS,
     SENSORS_TOPIC,
-    UsageError,
     build_task,
     robot_namespace,
-    split_ros_arguments,
 )
-from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
+from sdbc_sim.nodes.shutdown import StopSignals
+from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 
 DEFAULT_TASK = "gate_escape"
 """Task of a node started without a ``task`` parameter."""
@@ -240,45 +235,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    try:
-        argv, plain = split_ros_arguments("controller_node", argv, allow_plain=True)
-    except UsageError as error:
-        print(error, file=sys.stderr)
-        return 2
-    args = build_parser().parse_args(plain)
-    if len(set(args.robots)) != len(args.robots) or min(args.robots) < 0:
-        print(
-            f"controller_node: error: --robots must be distinct non-negative "
-            f"indices, got {args.robots}",
-            file=sys.stderr,
+def _make_nodes(startup: Startup) -> Iterator[ControllerNode]:
+    robots = startup.args.robots
+    if len(set(robots)) != len(robots) or min(robots) < 0:
+        raise ValueError(
+            f"--robots must be distinct non-negative indices, got {robots}"
         )
-        return 2
+    for robot in robots:
+        yield ControllerNode(robot)
+
+
+def _serve(startup: Startup, nodes: Sequence[ControllerNode]) -> int:
+    serve(nodes, startup.executor, startup.stop)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
     # Ctrl-C ends serve() but keeps the context up, so that the last commands
     # can still reach slower readers (a recorder) before the nodes go.
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    stop = StopSignals(rclpy.get_default_context()).install()
-    nodes: list[ControllerNode] = []
-    executor = SingleThreadedExecutor()
-    try:
-        for robot in args.robots:
-            node = ControllerNode(robot)
-            nodes.append(node)
-            executor.add_node(node)
-        serve(nodes, executor, stop)
-    except ValueError as error:
-        print(f"controller_node: error: {error}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        flush_publishers(node.publisher for node in nodes)
-        for node in nodes:
-            node.destroy_node()
-        stop.destroy()
-        rclpy.try_shutdown()
-    return 0
+    return run_node_program(
+        NodeProgram(
+            name="controller_node",
+            make_nodes=_make_nodes,
+            serve=_serve,
+            parser=build_parser(),
+            flush=lambda node: [node.publisher],
+        ),
+        argv,
+    )
 
 
 def serve(

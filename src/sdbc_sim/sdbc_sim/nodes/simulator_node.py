@@ -44,16 +44,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
     ParameterDescriptor,
 )
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
+from rclpy.publisher import Publisher
 from visualization_msgs.msg import MarkerArray
 
 from sdbc_msgs.msg import TaskState as TaskStateMsg
@@ -66,13 +64,12 @@ from sdbc_sim.nodes.interface import (
     SIMULATOR_NODE,
     TASK_STATE_QOS,
     TASK_STATE_TOPIC,
-    UsageError,
     build_task,
-    split_ros_arguments,
 )
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
 from sdbc_sim.nodes.markers import markers_from_task_state
-from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
+from sdbc_sim.nodes.shutdown import flush_publishers
+from sdbc_sim.nodes.startup import NodeProgram, run_node_program, spin_until_stopped
 from sdbc_sim.task_state_msgs import task_state_to_msg
 
 DEFAULT_TASK = "gate_escape"
@@ -87,8 +84,6 @@ MAX_TIMEOUT = 3600.0
 """Largest timeout a parameter accepts, seconds."""
 READER_POLL = 0.02
 """Seconds between checks while waiting for readers to match."""
-SIGNAL_POLL = 0.2
-"""Seconds the executor waits at most, so that Ctrl-C is seen that soon."""
 
 
 class TrialAborted(RuntimeError):
@@ -240,7 +235,7 @@ class SimulatorNode(Node):
                     break
         except LockstepError as error:
             raise TrialAborted(str(error)) from None
-        if late := flush_publishers(self.publishers):
+        if late := flush_publishers(self.trial_publishers):
             self.get_logger().warning(
                 f"trial {trial_id}: not every reader acknowledged {', '.join(late)}"
             )
@@ -248,8 +243,9 @@ class SimulatorNode(Node):
         return TrialOutcome(trial_id, fitness, characterisation, length)
 
     @property
-    def publishers(self) -> list:
-        """Every publisher of a trial's messages."""
+    def trial_publishers(self) -> list[Publisher]:
+        """Every publisher of a trial's messages (rclpy's ``publishers`` lists the
+        node's own too: parameter events, rosout)."""
         return [self._task_state, self._markers, *self.lockstep.publishers]
 
     def wait_for_readers(self, timeout: float) -> None:
@@ -260,7 +256,7 @@ class SimulatorNode(Node):
         deadline = time.monotonic() + timeout
         while unmatched := [
             p.topic_name
-            for p in self.publishers
+            for p in self.trial_publishers
             if p.get_subscription_count() < self.count_subscribers(p.topic_name)
         ]:
             if time.monotonic() >= deadline:
@@ -317,37 +313,19 @@ class SimulatorNode(Node):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    try:
-        argv, _ = split_ros_arguments("simulator_node", argv)
-    except UsageError as error:
-        print(error, file=sys.stderr)
-        return 2
     # Ctrl-C aborts a running trial and leaves spin, but keeps the context up,
     # so that what was published can still reach slower readers (a recorder).
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    stop = StopSignals(rclpy.get_default_context()).install()
-    node: SimulatorNode | None = None
     # Two threads: parameter and graph services stay responsive while a trial runs.
-    executor = MultiThreadedExecutor(num_threads=2)
-    try:
-        node = SimulatorNode(interrupt=stop.guard)
-        executor.add_node(node)
-        # Bounded waits: Python runs the signal handler only between them.
-        while not stop.requested.is_set():
-            executor.spin_once(timeout_sec=SIGNAL_POLL)
-    except ValueError as error:
-        print(f"simulator_node: error: {error}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        if node is not None:
-            flush_publishers(node.publishers)
-            node.destroy_node()
-        stop.destroy()
-        rclpy.try_shutdown()
-    return 0
+    return run_node_program(
+        NodeProgram(
+            name="simulator_node",
+            make_nodes=lambda startup: [SimulatorNode(interrupt=startup.stop.guard)],
+            serve=spin_until_stopped,
+            threads=2,
+            flush=lambda node: node.trial_publishers,
+        ),
+        argv,
+    )
 
 
 if __name__ == "__main__":
