@@ -56,6 +56,7 @@ import io
 import math
 import os
 import tempfile
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -105,10 +106,23 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
+ZIP_TIMESTAMP = (1980, 1, 1, 0, 0, 0)
+"""Date of every entry of the ``.npz`` archives written here (the earliest a zip
+holds): ``np.savez`` stamps entries with the current time, so the same arrays
+would give different bytes, and a committed file would change on every rewrite."""
+
+
 def npz_bytes(arrays: dict[str, np.ndarray], compress: bool = True) -> bytes:
-    """The bytes of an ``.npz`` archive holding ``arrays``."""
+    """The bytes of an ``.npz`` archive holding ``arrays``, which ``np.load`` reads
+    like ``np.savez``'s; the same arrays always give the same bytes."""
     buffer = io.BytesIO()
-    (np.savez_compressed if compress else np.savez)(buffer, **arrays)
+    method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
+    with zipfile.ZipFile(buffer, "w", compression=method) as archive:
+        for name, value in arrays.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=ZIP_TIMESTAMP)
+            info.compress_type = method
+            with archive.open(info, "w", force_zip64=True) as entry:
+                np.lib.format.write_array(entry, np.asanyarray(value))
     return buffer.getvalue()
 
 
