@@ -97,26 +97,28 @@ def test_quality_claims_follow_the_paper_per_task() -> None:
     assert len(sharing) == len(gate) == 6
 
 
-def _maps(shares: np.ndarray, region: np.ndarray) -> ExplorationMaps:
-    settings = SomSettings(rows=2, columns=2)
+def _maps(counts: np.ndarray, pooled: np.ndarray) -> ExplorationMaps:
+    settings = SomSettings(rows=2, columns=2, high_fitness_units=0.25)
     return ExplorationMaps(
         task="t",
         settings=settings,
         treatments=(FIT,),
         run_names=(("a", "b"),),
-        shares=(shares,),
-        mean_share=shares.mean(axis=0)[None],
-        percentile=np.zeros((1, 4)),
-        pooled_percentile=np.zeros(4),
-        region=region,
+        counts=(counts,),
+        percentile=pooled[None],
+        pooled_percentile=pooled,
         sample_count=4,
         quantisation_error=0.0,
     )
 
 
 def test_uniformity_coverage_and_region_share() -> None:
-    shares = np.array([[0.25, 0.25, 0.25, 0.25], [1.0, 0.0, 0.0, 0.0]])
-    maps = _maps(shares, np.array([True, False, False, False]))
+    counts = np.array([[3, 3, 3, 3], [5, 0, 0, 0]])
+    # The best of four occupied units (a quarter of them) is the region.
+    maps = _maps(counts, np.array([0.9, 0.1, 0.2, 0.1]))
+    np.testing.assert_array_equal(maps.region, [True, False, False, False])
+    np.testing.assert_allclose(maps.shares[0][0], [0.25, 0.25, 0.25, 0.25])
+    np.testing.assert_allclose(maps.mean_share[0], [0.625, 0.125, 0.125, 0.125])
     np.testing.assert_allclose(maps.uniformity(0), [1.0, 0.0])
     np.testing.assert_allclose(maps.coverage(0), [1.0, 0.25])
     np.testing.assert_allclose(maps.region_share(0), [0.25, 1.0])

@@ -6,7 +6,9 @@
 - :mod:`.runner`: running them, resumable, locally or on Dask, with progress;
 - :mod:`.measure`: a short probe of what a preset costs on this machine;
 - the analysis, from the run directories alone: :mod:`.rundirs` (reading, and
-  naming unusable runs), :mod:`.quality` (curves, bests, Mann-Whitney U),
+  naming unusable runs), :mod:`.reduce` (the one pass over the full data, into the
+  study's :mod:`.digest`, which is all the rest reads), :mod:`.quality` (curves,
+  bests, Mann-Whitney U),
   :mod:`.relevance` (the MI table), :mod:`.exploration` (SOM maps), :mod:`.cost`
   (rates, and the paper's study on a cluster), :mod:`.claims` (the paper's claims
   and our verdicts), :mod:`.figures`, :mod:`.analysis` (tables and figures),

@@ -1,10 +1,14 @@
-"""The analysis of a study directory: every table and figure, and the claims.
+"""The analysis of a study: every table and figure, and the claims.
 
 ``analyse(study_dir, out_dir)`` reads the run directories (:mod:`.rundirs`), leaves
-out and names the unusable ones, and writes::
+out and names the unusable ones, reduces them to the study's digest
+(:mod:`.reduce`, :mod:`.digest`) and makes everything else from that digest alone;
+``analyse_digest_dir(digest_dir, out_dir)`` does the same from a digest written
+before, with the same tables and figures to the byte. It writes::
 
     OUT/
       report.md                      the report (:mod:`.report`)
+      digest/study.json, <task>.npz  the digest: what all of the below needs
       figures/curves_<task>.png      best-fitness curves
       figures/bests_<task>.png       boxplots of each run's best
       figures/exploration_<task>.png SOM exploration maps
@@ -23,7 +27,7 @@ out and names the unusable ones, and writes::
 from __future__ import annotations
 
 import csv
-import json
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from sdbc_evolution.run.config import Treatment
+from sdbc_evolution.run.results import npz_bytes
 from sdbc_evolution.study.claims import (
     ALPHA,
     Claim,
@@ -46,13 +51,15 @@ from sdbc_evolution.study.cost import (
     projections,
     task_cost,
 )
-from sdbc_evolution.study.exploration import (
-    ExplorationMaps,
-    SomSettings,
-    exploration_maps,
+from sdbc_evolution.study.digest import (
+    DIGEST_DIR,
+    StudyDigest,
+    TaskDigest,
+    read_digest,
+    write_digest,
 )
+from sdbc_evolution.study.exploration import ExplorationMaps, SomSettings
 from sdbc_evolution.study.figures import plot_bests, plot_curves, plot_exploration
-from sdbc_evolution.study.plan import LOG_FILE
 from sdbc_evolution.study.quality import (
     Curves,
     PairTest,
@@ -60,8 +67,9 @@ from sdbc_evolution.study.quality import (
     pairwise_tests,
     run_bests,
 )
+from sdbc_evolution.study.reduce import reduce_study
 from sdbc_evolution.study.relevance import RelevanceTable, relevance_table
-from sdbc_evolution.study.rundirs import RunProblem, StudyData, load_study
+from sdbc_evolution.study.rundirs import RunProblem, load_study
 
 FIGURES_DIR = "figures"
 TABLES_DIR = "tables"
@@ -109,30 +117,22 @@ class TaskAnalysis:
 class Analysis:
     """A whole study's analysis."""
 
-    study: StudyData
+    digest: StudyDigest
     settings: AnalysisSettings
     tasks: list[TaskAnalysis]
     claims: list[Claim]
     projections: list[Projection]
-    sessions: list[dict[str, Any]]
     out: Path
-    problems: list[RunProblem]
 
+    @property
+    def problems(self) -> list[RunProblem]:
+        """Runs left out."""
+        return list(self.digest.problems)
 
-def read_sessions(root: Path) -> list[dict[str, Any]]:
-    """The study log's entries (a damaged line is left out)."""
-    path = root / LOG_FILE
-    if not path.is_file():
-        return []
-    entries = []
-    for line in path.read_text().splitlines():
-        try:
-            entry = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(entry, dict):
-            entries.append(entry)
-    return entries
+    @property
+    def sessions(self) -> list[dict[str, Any]]:
+        """The study log's entries."""
+        return list(self.digest.sessions)
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
@@ -150,10 +150,11 @@ def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
 
 
 def analyse_task(
-    study: StudyData, task: str, settings: AnalysisSettings, out: Path
+    digest: TaskDigest, settings: AnalysisSettings, out: Path
 ) -> TaskAnalysis:
+    task = digest.task
     figures, tables = out / FIGURES_DIR, out / TABLES_DIR
-    curves = best_curves(study, task)
+    curves = best_curves(digest)
     header = ["generation"]
     for t in curves.treatments:
         header += [f"{t.value} mean", f"{t.value} sd", f"{t.value} n"]
@@ -165,8 +166,8 @@ def analyse_task(
         rows.append(row)
     _write_csv(tables / f"curves_{task}.csv", header, rows)
 
-    bests = run_bests(study, task)
-    best_runs = {t: tuple(r.name for r in study.of(task, t)) for t in bests}
+    bests = run_bests(digest)
+    best_runs = {t: tuple(r.name for r in digest.of(t)) for t in bests}
     _write_csv(
         tables / f"bests_{task}.csv",
         ["treatment", "run", "best"],
@@ -210,7 +211,7 @@ def analyse_task(
         ],
     )
 
-    relevance = relevance_table(study, task)
+    relevance = relevance_table(digest)
     if relevance is not None:
         _write_csv(
             tables / f"relevance_{task}.csv",
@@ -237,7 +238,7 @@ def analyse_task(
             ],
         )
 
-    maps = exploration_maps(study, task, settings.som)
+    maps = digest.maps
     rows = []
     for k, t in enumerate(maps.treatments):
         for name, u, c, h in zip(
@@ -253,18 +254,24 @@ def analyse_task(
         ["treatment", "run", "uniformity", "coverage", "high_fitness_share"],
         rows,
     )
-    np.savez_compressed(
-        tables / f"exploration_{task}.npz",
-        treatments=np.array([t.value for t in maps.treatments]),
-        mean_share=maps.mean_share,
-        percentile=maps.percentile,
-        pooled_percentile=maps.pooled_percentile,
-        region=maps.region,
-        **{f"shares_{t.value}": maps.shares[k] for k, t in enumerate(maps.treatments)},
-        **{
-            f"runs_{t.value}": np.array(maps.run_names[k])
-            for k, t in enumerate(maps.treatments)
-        },
+    (tables / f"exploration_{task}.npz").write_bytes(
+        npz_bytes(
+            {
+                "treatments": np.array([t.value for t in maps.treatments]),
+                "mean_share": maps.mean_share,
+                "percentile": maps.percentile,
+                "pooled_percentile": maps.pooled_percentile,
+                "region": maps.region,
+                **{
+                    f"shares_{t.value}": maps.shares[k]
+                    for k, t in enumerate(maps.treatments)
+                },
+                **{
+                    f"runs_{t.value}": np.array(maps.run_names[k])
+                    for k, t in enumerate(maps.treatments)
+                },
+            }
+        )
     )
 
     figure_paths = {
@@ -280,7 +287,7 @@ def analyse_task(
         tests=tests,
         relevance=relevance,
         maps=maps,
-        cost=task_cost(study, task),
+        cost=task_cost(digest),
         figures=figure_paths,
     )
 
@@ -292,20 +299,58 @@ def analyse(
     command: list[str] | None = None,
 ) -> Analysis:
     """Analyses the study in ``study_dir`` into ``out_dir`` (default
-    ``study_dir/report``) and writes the report.
+    ``study_dir/report``): writes the digest (``out_dir/digest``), then the
+    tables, figures and report from it.
 
     Raises:
         FileNotFoundError: No usable run at all.
     """
+    settings = settings or AnalysisSettings()
+    out = Path(out_dir) if out_dir is not None else Path(study_dir) / "report"
+    study = load_study(study_dir)
+    digest = reduce_study(study, settings.som, str(study_dir), command)
+    write_digest(digest, out / DIGEST_DIR)
+    return analyse_digest(digest, out, settings, command)
+
+
+def analyse_digest_dir(
+    digest_dir: str | Path,
+    out_dir: str | Path | None = None,
+    settings: AnalysisSettings | None = None,
+    command: list[str] | None = None,
+) -> Analysis:
+    """Makes the tables, figures and report again from the digest in
+    ``digest_dir`` alone, into ``out_dir`` (default: the digest's parent folder),
+    and writes the digest beside them if it is not there already.
+
+    Raises:
+        DigestError: The digest is missing, damaged or not a digest.
+    """
+    digest = read_digest(digest_dir)
+    out = Path(out_dir) if out_dir is not None else Path(digest_dir).parent
+    if (out / DIGEST_DIR).resolve() != Path(digest_dir).resolve():
+        write_digest(digest, out / DIGEST_DIR)
+    return analyse_digest(digest, out, settings, command)
+
+
+def analyse_digest(
+    digest: StudyDigest,
+    out: Path,
+    settings: AnalysisSettings | None = None,
+    command: list[str] | None = None,
+) -> Analysis:
+    """Every table, figure and the report of ``digest`` into ``out``; the maps'
+    settings are the digest's own."""
     from sdbc_evolution.study.report import write_report
 
     settings = settings or AnalysisSettings()
-    root = Path(study_dir)
-    out = Path(out_dir) if out_dir is not None else root / "report"
-    study = load_study(root)
+    if digest.task_digests:
+        settings = dataclasses.replace(
+            settings, som=digest.task_digests[0].maps.settings
+        )
     (out / FIGURES_DIR).mkdir(parents=True, exist_ok=True)
     (out / TABLES_DIR).mkdir(parents=True, exist_ok=True)
-    tasks = [analyse_task(study, task, settings, out) for task in study.tasks()]
+    tasks = [analyse_task(t, settings, out) for t in digest.task_digests]
     claims: list[Claim] = []
     for ta in tasks:
         claims += quality_claims(ta.task, ta.tests, settings.alpha)
@@ -333,7 +378,7 @@ def analyse(
     _write_csv(
         tables / "problems.csv",
         ["run", "reason"],
-        [[p.name, p.reason] for p in study.problems],
+        [[p.name, p.reason] for p in digest.problems],
     )
     costs = [ta.cost for ta in tasks]
     _write_csv(
@@ -376,14 +421,12 @@ def analyse(
         ],
     )
     analysis = Analysis(
-        study=study,
+        digest=digest,
         settings=settings,
         tasks=tasks,
         claims=claims,
         projections=projected,
-        sessions=read_sessions(root),
         out=out,
-        problems=study.problems,
     )
     write_report(analysis, out / REPORT_FILE, command)
     return analysis

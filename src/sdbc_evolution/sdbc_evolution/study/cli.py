@@ -7,6 +7,7 @@ Examples::
     sdbc-study run --preset paper --scheduler tcp://10.0.0.5:8786
     sdbc-study run --preset paper --workers 1 --shard $SLURM_ARRAY_TASK_ID/240
     sdbc-study analyse results/study-local --out docs/study/local
+    sdbc-study analyse --from-digest docs/study/local/digest   # again, from its digest
     sdbc-study measure --preset local             # what the study would cost here
 
 ``run`` is resumable: run it again with the same ``--preset`` and ``--out`` and it
@@ -88,10 +89,23 @@ def build_parser() -> argparse.ArgumentParser:
     both.add_argument(
         "--report", type=Path, help="report directory (default: STUDY/report)"
     )
-    analyse = sub.add_parser("analyse", help="figures, tables and report of a study")
-    analyse.add_argument("study", type=Path, help="the study directory")
+    analyse = sub.add_parser(
+        "analyse",
+        help="figures, tables, report and digest of a study",
+        description="Analyse a study's run directories (writing OUT/digest beside "
+        "the report), or redo the report, tables and figures from a digest alone.",
+    )
+    analyse.add_argument("study", type=Path, nargs="?", help="the study directory")
     analyse.add_argument(
-        "--out", type=Path, help="report directory (default: STUDY/report)"
+        "--from-digest",
+        type=Path,
+        metavar="DIR",
+        help="make everything from this digest instead of the run directories",
+    )
+    analyse.add_argument(
+        "--out",
+        type=Path,
+        help="report directory (default: STUDY/report, or the digest's parent)",
     )
     measure = sub.add_parser(
         "measure", help="time a few generations per task and project the study"
@@ -166,12 +180,21 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
     return (1 if outcome.failed else 0), out
 
 
-def _analyse(study: Path, out: Path | None, argv: list[str]) -> int:
-    from sdbc_evolution.study.analysis import REPORT_FILE, analyse
+def _analyse(
+    study: Path | None, out: Path | None, argv: list[str], digest: Path | None = None
+) -> int:
+    from sdbc_evolution.study.analysis import REPORT_FILE, analyse, analyse_digest_dir
+    from sdbc_evolution.study.digest import DigestError
 
+    command = ["sdbc-study", *argv]
     try:
-        analysis = analyse(study, out, command=["sdbc-study", *argv])
-    except FileNotFoundError as error:
+        if study is not None and digest is None:
+            analysis = analyse(study, out, command=command)
+        elif digest is not None and study is None:
+            analysis = analyse_digest_dir(digest, out, command=command)
+        else:
+            return _error("analyse takes a study directory or --from-digest DIR")
+    except (FileNotFoundError, DigestError) as error:
         return _error(str(error))
     for problem in analysis.problems:
         print(f"left out {problem.name}: {problem.reason}", file=sys.stderr)
@@ -204,7 +227,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv = ["all", *argv]
     args = build_parser().parse_args(argv)
     if args.command == "analyse":
-        return _analyse(args.study, args.out, argv)
+        return _analyse(args.study, args.out, argv, args.from_digest)
     if args.command == "measure":
         return _measure(args)
     with stoppable():

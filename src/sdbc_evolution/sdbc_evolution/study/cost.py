@@ -35,8 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sdbc_evolution.study.digest import TaskDigest
 from sdbc_evolution.study.presets import PresetError, StudyPreset, load_preset
-from sdbc_evolution.study.rundirs import RunData, StudyData
+from sdbc_evolution.study.rundirs import RunData
 from sdbc_evolution.study.runner import EXECUTION_FILE
 
 CLUSTER_WORKERS = (8, 32, 128, 512)
@@ -91,18 +92,14 @@ class TaskCost:
         return 1.0 / self.seconds_per_generation
 
 
-def task_cost(study: StudyData, task: str) -> TaskCost:
-    """Pools every usable run of ``task`` (see the module docstring)."""
-    from sdbc_sim.tasks import make_task
-
-    runs = study.of(task)
-    built = make_task(task, **runs[0].config.task_config)
-    bodies = int(built.layout.n_bodies)
+def task_cost(task: TaskDigest) -> TaskCost:
+    """Pools every usable run of the task (see the module docstring)."""
+    bodies = task.bodies
     steps = busy = serial = individuals = trial_steps = controller_trials = 0.0
     walls = []
-    for run in runs:
+    for run in task.runs:
         evaluation = run.config.evaluation
-        n = np.array([f.shape[0] for f in run.fitness], dtype=np.float64)
+        n = run.population.astype(np.float64)
         length = run.trial_steps / (n * evaluation.trials)
         steps += float(
             np.sum(
@@ -111,9 +108,9 @@ def task_cost(study: StudyData, task: str) -> TaskCost:
                 * (n * evaluation.trials + evaluation.reevaluation_trials)
             )
         )
-        wall = run.columns["wall_time"]
-        evaluation_time = run.columns["evaluation_time"]
-        busy += float(np.sum(evaluation_time * workers_per_generation(run)))
+        wall = run.wall_time
+        evaluation_time = run.evaluation_time
+        busy += float(np.sum(evaluation_time * run.workers))
         serial += float(np.sum(np.maximum(wall - evaluation_time, 0.0)))
         individuals += float(n.sum())
         trial_steps += float(run.trial_steps.sum())
@@ -121,10 +118,10 @@ def task_cost(study: StudyData, task: str) -> TaskCost:
         walls.append(wall)
     wall_all = np.concatenate(walls)
     return TaskCost(
-        task=task,
-        runs=len(runs),
+        task=task.task,
+        runs=len(task.runs),
         bodies=bodies,
-        max_steps=int(built.max_steps),
+        max_steps=task.max_steps,
         mean_length=trial_steps / controller_trials,
         rate=steps / busy,
         serial_per_individual=serial / individuals,

@@ -84,19 +84,18 @@ class SomSettings:
 
 @dataclass(frozen=True)
 class ExplorationMaps:
-    """The maps of one task.
+    """The maps of one task: what the figures, tables and claims need of the SOM,
+    all of it small (the SOM's weights and the individuals are not kept).
 
     Attributes:
         task: Task name.
         settings: How they were made.
         treatments: Treatments, the order of every per-treatment axis.
         run_names: Per treatment, its runs' names.
-        shares: Per treatment, (R, U) share of each run's individuals per unit.
-        mean_share: (K, U) mean share over the treatment's runs.
+        counts: Per treatment, (R, U) int64 individuals of each run per unit.
         percentile: (K, U) fitness percentile of the treatment's individuals per
             unit (NaN where it has none).
         pooled_percentile: (U,) the same over every treatment's individuals.
-        region: (U,) bool, the high-fitness region.
         sample_count: SDBC vectors the map was trained on.
         quantisation_error: Mean distance of the sample to its BMU's weights.
     """
@@ -105,13 +104,28 @@ class ExplorationMaps:
     settings: SomSettings
     treatments: tuple[Treatment, ...]
     run_names: tuple[tuple[str, ...], ...]
-    shares: tuple[np.ndarray, ...]
-    mean_share: np.ndarray
+    counts: tuple[np.ndarray, ...]
     percentile: np.ndarray
     pooled_percentile: np.ndarray
-    region: np.ndarray
     sample_count: int
     quantisation_error: float
+
+    @property
+    def shares(self) -> tuple[np.ndarray, ...]:
+        """Per treatment, (R, U) share of each run's individuals per unit."""
+        return tuple(c / c.sum(axis=1, keepdims=True) for c in self.counts)
+
+    @property
+    def mean_share(self) -> np.ndarray:
+        """(K, U) mean share over the treatment's runs."""
+        return np.stack([s.mean(axis=0) for s in self.shares])
+
+    @property
+    def region(self) -> np.ndarray:
+        """(U,) bool, the high-fitness region (:func:`high_fitness_region`)."""
+        return high_fitness_region(
+            self.pooled_percentile, self.settings.high_fitness_units
+        )
 
     def uniformity(self, k: int) -> np.ndarray:
         """(R,) normalised entropy of each run of treatment ``k``."""
@@ -226,10 +240,10 @@ def exploration_maps(
     quantisation_error = float(
         np.linalg.norm(sample - weights[sample_units], axis=1).mean()
     )
-    shares, names, unit_lists, fitness_lists = [], [], [], []
+    counts, names, unit_lists, fitness_lists = [], [], [], []
     for treatment in treatments:
         treatment_runs = study.of(task, treatment)
-        run_shares, run_units, run_fitness = [], [], []
+        run_counts, run_units, run_fitness = [], [], []
         for run in treatment_runs:
             units = np.concatenate(
                 [
@@ -237,11 +251,10 @@ def exploration_maps(
                     for x in run.sdbc_generations()
                 ]
             )
-            counts = np.bincount(units, minlength=settings.units)
-            run_shares.append(counts / counts.sum())
+            run_counts.append(np.bincount(units, minlength=settings.units))
             run_units.append(units)
             run_fitness.append(np.concatenate(run.fitness))
-        shares.append(np.stack(run_shares))
+        counts.append(np.stack(run_counts).astype(np.int64))
         names.append(tuple(r.name for r in treatment_runs))
         unit_lists.append(np.concatenate(run_units))
         fitness_lists.append(np.concatenate(run_fitness))
@@ -255,17 +268,14 @@ def exploration_maps(
     pooled = _percentiles(
         np.concatenate(unit_lists), np.concatenate(fitness_lists), settings.units, q
     )
-    region = high_fitness_region(pooled, settings.high_fitness_units)
     return ExplorationMaps(
         task=task,
         settings=settings,
         treatments=treatments,
         run_names=tuple(names),
-        shares=tuple(shares),
-        mean_share=np.stack([s.mean(axis=0) for s in shares]),
+        counts=tuple(counts),
         percentile=percentile,
         pooled_percentile=pooled,
-        region=region,
         sample_count=int(sample.shape[0]),
         quantisation_error=quantisation_error,
     )

@@ -25,27 +25,12 @@ import numpy as np
 from scipy.stats import mannwhitneyu
 
 from sdbc_evolution.run.config import Treatment
-from sdbc_evolution.study.rundirs import RunData, StudyData
-
-REEVALUATED = "reevaluated_fitness"
-"""Column of the re-evaluated best of each generation (the paper's curves)."""
-SELECTED = "best_fitness"
-"""Column of the best fitness as selection saw it (when there is no re-evaluation)."""
+from sdbc_evolution.study.digest import RunDigest, TaskDigest
 
 
-def curve_column(run: RunData) -> str:
-    """The column a run's curve comes from (see the module docstring)."""
-    return REEVALUATED if np.isfinite(run.columns[REEVALUATED]).any() else SELECTED
-
-
-def run_curve(run: RunData) -> np.ndarray:
-    """(G,) the run's curve."""
-    return run.columns[curve_column(run)]
-
-
-def run_best(run: RunData) -> float:
+def run_best(run: RunDigest) -> float:
     """The highest value of the run's curve."""
-    return float(np.nanmax(run_curve(run)))
+    return float(np.nanmax(run.curve))
 
 
 @dataclass(frozen=True)
@@ -58,7 +43,8 @@ class Curves:
         mean: (K, G) mean over runs of each generation's curve value.
         sd: (K, G) standard deviation over runs (ddof 1; NaN with one run).
         n: (K, G) runs that reached each generation.
-        sources: Curve column of each treatment's runs (see :func:`curve_column`).
+        sources: Curve column of each treatment's runs (see
+            :func:`sdbc_evolution.study.reduce.curve_column`).
     """
 
     task: str
@@ -79,37 +65,33 @@ class Curves:
         return np.arange(self.mean.shape[1])
 
 
-def best_curves(study: StudyData, task: str) -> Curves:
+def best_curves(task: TaskDigest) -> Curves:
     """Mean curve per treatment; runs of unequal length count where they reach."""
-    treatments = tuple(study.treatments(task))
-    length = max(r.generations for r in study.of(task))
+    treatments = tuple(task.treatments())
+    length = max(r.generations for r in task.runs)
     k = len(treatments)
     mean = np.full((k, length), np.nan)
     sd = np.full((k, length), np.nan)
     n = np.zeros((k, length), dtype=np.int64)
     sources = []
     for i, treatment in enumerate(treatments):
-        runs = study.of(task, treatment)
+        runs = task.of(treatment)
         values = np.full((len(runs), length), np.nan)
         for j, run in enumerate(runs):
-            curve = run_curve(run)
-            values[j, : curve.shape[0]] = curve
+            values[j, : run.generations] = run.curve
         n[i] = np.isfinite(values).sum(axis=0)
         with warnings.catch_warnings():
             # A generation no run reached is NaN, as it should be.
             warnings.simplefilter("ignore", RuntimeWarning)
             mean[i] = np.nanmean(values, axis=0)
             sd[i] = np.where(n[i] > 1, np.nanstd(values, axis=0, ddof=1), np.nan)
-        sources.append("/".join(sorted({curve_column(r) for r in runs})))
-    return Curves(task, treatments, mean, sd, n, tuple(sources))
+        sources.append("/".join(sorted({r.curve_source for r in runs})))
+    return Curves(task.task, treatments, mean, sd, n, tuple(sources))
 
 
-def run_bests(study: StudyData, task: str) -> dict[Treatment, np.ndarray]:
+def run_bests(task: TaskDigest) -> dict[Treatment, np.ndarray]:
     """Each run's best, per treatment (run order as found)."""
-    return {
-        t: np.array([run_best(r) for r in study.of(task, t)])
-        for t in study.treatments(task)
-    }
+    return {t: np.array([run_best(r) for r in task.of(t)]) for t in task.treatments()}
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,8 @@ import numpy as np
 from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.run.results import WEIGHT_PREFIX
 from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information
-from sdbc_evolution.study.rundirs import RunData, StudyData
+from sdbc_evolution.study.digest import TaskDigest
+from sdbc_evolution.study.rundirs import RunData
 
 TASK_SPECIFIC_FEATURES: dict[str, dict[str, tuple[str, ...]]] = {
     "gate_escape": {
@@ -163,35 +164,33 @@ class RelevanceTable:
         return self.names.index(name) + 1 if name in self.names else None
 
 
-def relevance_table(study: StudyData, task: str) -> RelevanceTable | None:
+def relevance_table(task: TaskDigest) -> RelevanceTable | None:
     """The table from the task's NS-SD+ runs (None without any)."""
-    runs = study.of(task, Treatment.NS_SD_PLUS)
-    if not runs:
+    measured = [
+        (r.information, r.chance)
+        for r in task.of(Treatment.NS_SD_PLUS)
+        if r.information is not None and r.chance is not None
+    ]
+    if not measured:
         return None
-    names = runs[0].sdbc_names
-    for run in runs[1:]:
-        if run.sdbc_names != names:
-            raise ValueError(
-                f"{run.name}: SDBC dimensions differ from {runs[0].name}'s; "
-                "the runs are not of one task setting"
-            )
-    information = np.stack([run_information(r) for r in runs])  # (R, D)
-    chance = np.stack([run_chance_information(r) for r in runs]).mean(axis=0)
+    names = task.sdbc_names
+    information = np.stack([i for i, _ in measured])  # (R, D)
+    chance = np.stack([c for _, c in measured]).mean(axis=0)
     mean = information.mean(axis=0)
     sd = (
         information.std(axis=0, ddof=1)
-        if len(runs) > 1
+        if len(measured) > 1
         else np.full(mean.shape, np.nan)
     )
     order = np.argsort(-mean, kind="stable")
-    matched = task_specific_dimensions(task)
+    matched = task_specific_dimensions(task.task)
     ordered = tuple(names[i] for i in order)
     return RelevanceTable(
-        task=task,
+        task=task.task,
         names=ordered,
         mean=mean[order],
         sd=sd[order],
-        runs=len(runs),
+        runs=len(measured),
         in_task_specific=np.array([n in matched for n in ordered]),
         chance=chance[order],
     )

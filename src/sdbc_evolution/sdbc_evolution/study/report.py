@@ -28,7 +28,7 @@ from sdbc_evolution.study.claims import (
 )
 from sdbc_evolution.study.paper import paper_generations
 from sdbc_evolution.study.plan import STUDY_FILE
-from sdbc_evolution.study.presets import PAPER_RUNS, PresetError, load_preset_file
+from sdbc_evolution.study.presets import PAPER_RUNS
 from sdbc_evolution.study.relevance import TASK_SPECIFIC_FEATURES
 from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
@@ -71,7 +71,7 @@ def _rel(path: Path, start: Path) -> str:
 
 
 def _sizes(analysis: Analysis) -> list[str]:
-    study = analysis.study
+    study = analysis.digest
     rows = []
     for ta in analysis.tasks:
         config = study.of(ta.task)[0].config
@@ -245,7 +245,7 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         )
         + "). Chance: the same estimate with each population's fitness shuffled, "
         "the estimate's own bias at population "
-        f"{analysis.study.of(ta.task)[0].config.ga.population_size} (mean over "
+        f"{analysis.digest.of(ta.task)[0].config.ga.population_size} (mean over "
         f"all {len(table.names)} dimensions: {table.chance.mean():.2f} bits, "
         f"against {table.mean.mean():.2f} with the true fitness); what a "
         "feature has above it is what it shares with fitness.",
@@ -344,7 +344,7 @@ def _sd(x: np.ndarray) -> float:
 def _differences(analysis: Analysis) -> list[str]:
     claims = analysis.claims
     counts = Counter(c.verdict for c in claims)
-    study = analysis.study
+    study = analysis.digest
     some = study.runs[0].config
     runs = Counter((r.task, r.treatment) for r in study.runs)
     least = min(runs.values())
@@ -502,13 +502,11 @@ def _projection(analysis: Analysis) -> list[str]:
 
 
 def _preset_line(analysis: Analysis) -> list[str]:
-    path = analysis.study.root / STUDY_FILE
-    if not path.is_file():
-        return ["No `study.yaml`: the runs were not made by `sdbc-study run`.", ""]
-    try:
-        preset = load_preset_file(path)
-    except PresetError as error:
-        return [f"`study.yaml` unreadable: {error}", ""]
+    preset = analysis.digest.preset
+    if analysis.digest.preset_error is not None:
+        return [f"`{STUDY_FILE}` unreadable: {analysis.digest.preset_error}", ""]
+    if preset is None:
+        return [f"No `{STUDY_FILE}`: the runs were not made by `sdbc-study run`.", ""]
     return [
         f"Preset **{preset.name}** (study seed {preset.seed}): {preset.description}",
         "",
@@ -533,14 +531,15 @@ def write_report(
     analysis: Analysis, path: Path, command: list[str] | None = None
 ) -> Path:
     """Writes the Markdown report of ``analysis`` to ``path``."""
-    study = analysis.study
+    study = analysis.digest
     lines = [
         "# Replication of Gomes, Mariano & Christensen (ALIFE 2014): our numbers",
         "",
         "Novelty search with systematically derived behaviour characterisations "
         "(SDBC), replicated with sdbc. Every number, table and figure below comes "
-        "from the run directories of the study; the paper's claims are set beside "
-        "ours one by one.",
+        "from the run directories of the study, through its digest (`digest/`, from "
+        "which `sdbc-study analyse --from-digest` makes them again); the paper's "
+        "claims are set beside ours one by one.",
         "",
     ]
     lines += _preset_line(analysis)
@@ -552,16 +551,17 @@ def write_report(
         "",
     ]
     lines += _wall_times(analysis)
-    commands = list(
-        dict.fromkeys(
-            shlex.join(s["command"]) for s in analysis.sessions if s.get("command")
-        )
-    )
-    if commands or command:
-        lines += ["Commands:", "", "```"]
+    runs = [shlex.join(s["command"]) for s in analysis.sessions if s.get("command")]
+    analyses = [list(c) for c in (study.command, command or ()) if c]
+    commands = list(dict.fromkeys(runs + [shlex.join(c) for c in analyses]))
+    if commands:
+        lines += [
+            f"Commands (a run's `--out` given as the study directory analysed, "
+            f"`{study.study_dir}`):",
+            "",
+            "```",
+        ]
         lines += commands
-        if command:
-            lines += [shlex.join(command)]
         lines += ["```", ""]
     expected = f" of {study.expected} expected" if study.expected is not None else ""
     lines += [f"{len(study.runs)} usable runs{expected}.", ""]
