@@ -214,3 +214,43 @@ def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarr
     """Euclidean distance from points (..., 2) to segments (P, 2, 2): (..., P)."""
     d = segment_offsets(points, segments)
     return norm(d[..., 0], d[..., 1])
+
+
+def neighbour_sectors(
+    sensed: np.ndarray,
+    edge: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    sensor_range: float,
+    n_sectors: int,
+) -> np.ndarray:
+    """The nearest sensed robot's reading per sector, for every robot.
+
+    Args:
+        sensed: (B, N, N) bool, robot j sensed by robot i.
+        edge: (B, N, N) edge-to-edge distances.
+        dx, dy: (B, N, N) offsets from robot i to robot j (:func:`pairwise_offsets`).
+        cos_h, sin_h: (B, N) headings.
+        sensor_range: Range of the reading (2 d / range - 1, at least -1).
+        n_sectors: Sectors (see :func:`arc_index`).
+
+    Returns:
+        (B, N, n_sectors) readings, 1 where a sector senses nobody.
+    """
+    b, n = cos_h.shape
+    pairs = np.flatnonzero(sensed)
+    rows = pairs // n
+    readings = np.maximum(
+        normalised_reading(edge.reshape(-1)[pairs], sensor_range), -1.0
+    )
+    bearings = bearing(
+        dx.reshape(-1)[pairs],
+        dy.reshape(-1)[pairs],
+        cos_h.reshape(-1)[rows],
+        sin_h.reshape(-1)[rows],
+    )
+    return sector_minimum(rows, bearings, readings, b * n, n_sectors).reshape(
+        b, n, n_sectors
+    )

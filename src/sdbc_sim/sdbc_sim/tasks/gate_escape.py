@@ -55,16 +55,16 @@ from typing import Literal
 
 import numpy as np
 
+from sdbc_sim.arena import WallRays, speed_and_turn
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     TWO_PI,
     bearing,
+    neighbour_sectors,
     norm,
     normalised_reading,
     pairwise_offsets,
-    ray_segment_distance,
     robot_sum,
-    sector_minimum,
 )
 from sdbc_sim.settings import (
     Fraction,
@@ -246,10 +246,9 @@ class GateEscape(Task):
                 ),
             ),
         )
-        arc = TWO_PI / c.n_wall_rays
-        ray_angles = -arc / 2.0 + arc * np.arange(c.n_wall_rays)
-        self._ray_cos = np.cos(ray_angles)
-        self._ray_sin = np.sin(ray_angles)
+        self._wall_rays = WallRays(
+            self.walls, (0.0, 0.0, s, s), c.n_wall_rays, c.wall_ray_range, r
+        )
         self._not_self = ~np.eye(n, dtype=bool)
         self._radii = np.full((1, n), r)
         self._gate_segments = self.gate[None, None]
@@ -315,58 +314,17 @@ class GateEscape(Task):
         )
         count = robot_sum(sensed.astype(np.float64), axis=-1)
         out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
-        pairs = np.flatnonzero(sensed)
-        rows = pairs // n
-        readings = np.maximum(
-            normalised_reading(edge.reshape(-1)[pairs], c.neighbour_range), -1.0
+        out[..., 3 : 3 + c.n_robot_arcs] = neighbour_sectors(
+            sensed, edge, dx, dy, cos_h, sin_h, c.neighbour_range, c.n_robot_arcs
         )
-        bearings = bearing(
-            dx.reshape(-1)[pairs],
-            dy.reshape(-1)[pairs],
-            cos_h.reshape(-1)[rows],
-            sin_h.reshape(-1)[rows],
-        )
-        arcs = sector_minimum(rows, bearings, readings, b * n, c.n_robot_arcs)
-        out[..., 3 : 3 + c.n_robot_arcs] = arcs.reshape(b, n, -1)
-        out[..., 3 + c.n_robot_arcs :] = self._wall_rays(pos, cos_h, sin_h)
-        return out
-
-    def _wall_rays(
-        self, pos: np.ndarray, cos_heading: np.ndarray, sin_heading: np.ndarray
-    ) -> np.ndarray:
-        """(B, N, n_rays) wall readings; rays are cast only for robots close
-        enough to a wall for a ray to reach it (the walls lie on the arena's
-        border)."""
-        c = self.config
-        s, r, reach = c.arena_size, c.robot_radius, c.robot_radius + c.wall_ray_range
-        out = np.ones((*cos_heading.shape, c.n_wall_rays))
-        x, y = pos[..., 0], pos[..., 1]
-        near = np.flatnonzero(
-            (x < reach) | (x > s - reach) | (y < reach) | (y > s - reach)
-        )
-        if near.size == 0:
-            return out
-        p = pos.reshape(-1, 2)[near]
-        cos_h = cos_heading.reshape(-1, 1)[near]
-        sin_h = sin_heading.reshape(-1, 1)[near]
-        ux = cos_h * self._ray_cos - sin_h * self._ray_sin
-        uy = sin_h * self._ray_cos + cos_h * self._ray_sin
-        u = np.stack([ux, uy], axis=-1).reshape(-1, 2)
-        origin = np.repeat(p, c.n_wall_rays, axis=0) + r * u
-        d = ray_segment_distance(origin, u, c.wall_ray_range, self.walls)
-        reading = np.where(np.isfinite(d), normalised_reading(d, c.wall_ray_range), 1.0)
-        out.reshape(-1, c.n_wall_rays)[near] = reading.reshape(-1, c.n_wall_rays)
+        out[..., 3 + c.n_robot_arcs :] = self._wall_rays.read(pos, cos_h, sin_h)
         return out
 
     def actuate(
         self, trials: GateEscapeTrials, bodies: BodyState, outputs: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         c = self.config
-        speed = np.where(
-            outputs[..., 2] > c.stop_threshold, 0.0, outputs[..., 0] * c.max_speed
-        )
-        turn = (2.0 * outputs[..., 1] - 1.0) * c.max_turn
-        return speed, turn
+        return speed_and_turn(outputs, c.max_speed, c.max_turn, c.stop_threshold)
 
     def update(
         self, trials: GateEscapeTrials, bodies: BodyState, step: int

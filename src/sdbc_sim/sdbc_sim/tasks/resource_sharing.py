@@ -112,14 +112,14 @@ from typing import Literal
 
 import numpy as np
 
+from sdbc_sim.arena import draw_apart
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     bearing,
+    neighbour_sectors,
     norm,
-    normalised_reading,
     pairwise_offsets,
     robot_sum,
-    sector_minimum,
 )
 from sdbc_sim.settings import (
     Fraction,
@@ -132,9 +132,6 @@ from sdbc_sim.settings import (
 )
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
-
-_MAX_START_DRAWS = 100_000
-"""Position draws per robot before a start counts as impossible."""
 
 
 @settings
@@ -370,17 +367,9 @@ class ResourceSharing(Task):
         for t, rng in enumerate(rngs):
             taken = [centre]
             for i in range(n):
-                for _ in range(_MAX_START_DRAWS):
-                    p = tuple(rng.uniform(r, s - r, size=2).tolist())
-                    if all(math.dist(q, p) >= c.start_separation for q in taken):
-                        break
-                else:
-                    raise ValueError(
-                        f"resource_sharing: the arena is too small for its robots: no "
-                        f"start for robot {i} at least start_separation "
-                        f"{c.start_separation} from the others after "
-                        f"{_MAX_START_DRAWS} draws"
-                    )
+                p = draw_apart(
+                    rng, r, s - r, c.start_separation, taken, self.name, f"robot {i}"
+                )
                 taken.append(p)
                 position[t, i] = p
                 angle[t, i] = rng.uniform(-np.pi, np.pi)
@@ -407,19 +396,10 @@ class ResourceSharing(Task):
         # Other robots, dead ones too (obstacles); only the few in range.
         dx, dy, dist = pairwise_offsets(pos)
         edge = dist - 2.0 * c.robot_radius
-        pairs = np.flatnonzero((edge <= c.robot_sensor_range) & self._not_self)
-        rows = pairs // n
-        readings = np.maximum(
-            normalised_reading(edge.reshape(-1)[pairs], c.robot_sensor_range), -1.0
+        sensed = (edge <= c.robot_sensor_range) & self._not_self
+        out[..., :k] = neighbour_sectors(
+            sensed, edge, dx, dy, cos_h, sin_h, c.robot_sensor_range, k
         )
-        bearings = bearing(
-            dx.reshape(-1)[pairs],
-            dy.reshape(-1)[pairs],
-            cos_h.reshape(-1)[rows],
-            sin_h.reshape(-1)[rows],
-        )
-        arcs = sector_minimum(rows, bearings, readings, b * n, k)
-        out[..., :k] = arcs.reshape(b, n, k)
         sx = self.station_centre[0] - pos[..., 0]
         sy = self.station_centre[1] - pos[..., 1]
         station = norm(sx, sy)

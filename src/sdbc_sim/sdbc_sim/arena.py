@@ -1,0 +1,121 @@
+"""What several tasks share beyond the sensors' geometry: walls on the border of a
+box, wall-sensing rays, random starts kept apart, and the speed-and-turn drive.
+
+Readings follow :mod:`sdbc_sim.sensors` (2 d / range - 1, 1 when nothing is in
+range); everything is batch-first numpy in trial-local coordinates.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sdbc_sim.sensors import TWO_PI, normalised_reading, ray_segment_distance
+
+MAX_START_DRAWS = 100_000
+"""Position draws per robot before a start counts as impossible."""
+
+
+def square_walls(size: float) -> np.ndarray:
+    """(4, 2, 2) the walls of the square [0, size]^2, counter-clockwise from the
+    origin."""
+    corners = [(0.0, 0.0), (size, 0.0), (size, size), (0.0, size), (0.0, 0.0)]
+    return np.array([[corners[i], corners[i + 1]] for i in range(4)])
+
+
+class WallRays:
+    """Wall-sensing rays of circular robots whose walls all lie on the border of
+    a box: ray k starts at the robot's edge at bearing -pi / n + 2 pi k / n and
+    reads the distance d to the first wall it crosses within ``ray_range``.
+
+    Rays are cast only for robots close enough to the border for a ray to reach
+    it; the others read 1.
+
+    Args:
+        walls: (P, 2, 2) wall segments, all on the border of ``box``.
+        box: (x_min, y_min, x_max, y_max) that border.
+        n_rays: Rays per robot.
+        ray_range: Length of a ray, from the robot's edge.
+        robot_radius: Radius of every robot.
+    """
+
+    def __init__(
+        self,
+        walls: np.ndarray,
+        box: tuple[float, float, float, float],
+        n_rays: int,
+        ray_range: float,
+        robot_radius: float,
+    ) -> None:
+        self.walls = walls
+        self.box = box
+        self.n_rays = n_rays
+        self.ray_range = ray_range
+        self.robot_radius = robot_radius
+        arc = TWO_PI / n_rays
+        angles = -arc / 2.0 + arc * np.arange(n_rays)
+        self._cos = np.cos(angles)
+        self._sin = np.sin(angles)
+
+    def read(
+        self, pos: np.ndarray, cos_heading: np.ndarray, sin_heading: np.ndarray
+    ) -> np.ndarray:
+        """(B, N, n_rays) readings of robots at ``pos`` (B, N, 2) with headings of
+        cosine and sine (B, N)."""
+        n_rays, r = self.n_rays, self.robot_radius
+        reach = r + self.ray_range
+        x0, y0, x1, y1 = self.box
+        out = np.ones((*cos_heading.shape, n_rays))
+        x, y = pos[..., 0], pos[..., 1]
+        near = np.flatnonzero(
+            (x < x0 + reach) | (x > x1 - reach) | (y < y0 + reach) | (y > y1 - reach)
+        )
+        if near.size == 0:
+            return out
+        p = pos.reshape(-1, 2)[near]
+        cos_h = cos_heading.reshape(-1, 1)[near]
+        sin_h = sin_heading.reshape(-1, 1)[near]
+        ux = cos_h * self._cos - sin_h * self._sin
+        uy = sin_h * self._cos + cos_h * self._sin
+        u = np.stack([ux, uy], axis=-1).reshape(-1, 2)
+        origin = np.repeat(p, n_rays, axis=0) + r * u
+        d = ray_segment_distance(origin, u, self.ray_range, self.walls)
+        reading = np.where(np.isfinite(d), normalised_reading(d, self.ray_range), 1.0)
+        out.reshape(-1, n_rays)[near] = reading.reshape(-1, n_rays)
+        return out
+
+
+def speed_and_turn(
+    outputs: np.ndarray, max_speed: float, max_turn: float, stop_threshold: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The authors' three-output drive: speed o0 x ``max_speed``, 0 if
+    o2 > ``stop_threshold``; turn (2 o1 - 1) x ``max_turn``. Each (B, N)."""
+    speed = np.where(outputs[..., 2] > stop_threshold, 0.0, outputs[..., 0] * max_speed)
+    turn = (2.0 * outputs[..., 1] - 1.0) * max_turn
+    return speed, turn
+
+
+def draw_apart(
+    rng: np.random.Generator,
+    low: float,
+    high: float,
+    separation: float,
+    taken: list[tuple[float, float]],
+    task: str,
+    what: str,
+) -> tuple[float, float]:
+    """A point uniform in [low, high]^2 (x then y from ``rng``), redrawn until it
+    is at least ``separation`` from every point of ``taken``.
+
+    Raises:
+        ValueError: Naming ``task`` and ``what`` after ``MAX_START_DRAWS`` draws.
+    """
+    for _ in range(MAX_START_DRAWS):
+        p = tuple(rng.uniform(low, high, size=2).tolist())
+        if all(math.dist(q, p) >= separation for q in taken):
+            return p[0], p[1]
+    raise ValueError(
+        f"{task}: the arena is too small for its robots: no start for {what} at "
+        f"least {separation} from the others after {MAX_START_DRAWS} draws"
+    )
