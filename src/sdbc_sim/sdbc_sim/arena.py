@@ -12,9 +12,32 @@ import math
 import numpy as np
 
 from sdbc_sim.sensors import TWO_PI, normalised_reading, ray_segment_distance
+from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState
 
 MAX_START_DRAWS = 100_000
 """Position draws per robot before a start counts as impossible."""
+
+
+def wall_group() -> EntityGroupSpec:
+    """The Wall group: all of a trial's walls as one static polygon, without
+    attributes."""
+    return EntityGroupSpec(
+        name="Wall",
+        attributes=(),
+        min_size=1,
+        max_size=1,
+        static=True,
+        geometry=Geometry.POLYGON,
+    )
+
+
+def wall_state(walls: np.ndarray) -> GroupState:
+    """The Wall group's state: the (P, 2, 2) ``walls``, shared by every trial."""
+    return GroupState(
+        present=np.ones((1, 1), dtype=bool),
+        attributes=np.empty((1, 1, 0)),
+        segments=walls[None, None],
+    )
 
 
 def square_walls(size: float) -> np.ndarray:
@@ -94,6 +117,32 @@ def speed_and_turn(
     speed = np.where(outputs[..., 2] > stop_threshold, 0.0, outputs[..., 0] * max_speed)
     turn = (2.0 * outputs[..., 1] - 1.0) * max_turn
     return speed, turn
+
+
+def draw_team(
+    rng: np.random.Generator,
+    n: int,
+    low: float,
+    high: float,
+    separation: float,
+    taken: list[tuple[float, float]],
+    task: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Starts of ``n`` robots: per robot, a position from :func:`draw_apart` (kept
+    ``separation`` from ``taken`` and from the earlier robots; appended to
+    ``taken``), then a heading uniform in [-pi, pi).
+
+    Returns:
+        (n, 2) positions and (n,) headings.
+    """
+    position = np.empty((n, 2))
+    heading = np.empty(n)
+    for i in range(n):
+        p = draw_apart(rng, low, high, separation, taken, task, f"robot {i}")
+        taken.append(p)
+        position[i] = p
+        heading[i] = rng.uniform(-np.pi, np.pi)
+    return position, heading
 
 
 def draw_apart(

@@ -217,29 +217,36 @@ def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarr
 
 
 def neighbour_sectors(
-    sensed: np.ndarray,
-    edge: np.ndarray,
-    dx: np.ndarray,
-    dy: np.ndarray,
+    pos: np.ndarray,
     cos_h: np.ndarray,
     sin_h: np.ndarray,
+    robot_radius: float,
     sensor_range: float,
     n_sectors: int,
-) -> np.ndarray:
+    visible: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """The nearest sensed robot's reading per sector, for every robot.
 
+    Robot i senses robot j when ``visible[b, i, j]`` and their edge-to-edge
+    distance d is at most ``sensor_range``; the reading is 2 d / range - 1 (at
+    least -1).
+
     Args:
-        sensed: (B, N, N) bool, robot j sensed by robot i.
-        edge: (B, N, N) edge-to-edge distances.
-        dx, dy: (B, N, N) offsets from robot i to robot j (:func:`pairwise_offsets`).
+        pos: (B, N, 2) centres.
         cos_h, sin_h: (B, N) headings.
-        sensor_range: Range of the reading (2 d / range - 1, at least -1).
+        robot_radius: Radius of every robot.
+        sensor_range: Range, edge to edge.
         n_sectors: Sectors (see :func:`arc_index`).
+        visible: (B, N, N) or (N, N) bool, which robots each robot may sense.
 
     Returns:
-        (B, N, n_sectors) readings, 1 where a sector senses nobody.
+        (B, N, n_sectors) readings, 1 where a sector senses nobody, and the
+        (B, N, N) bool of who senses whom.
     """
     b, n = cos_h.shape
+    dx, dy, dist = pairwise_offsets(pos)
+    edge = dist - 2.0 * robot_radius
+    sensed = (edge <= sensor_range) & visible
     pairs = np.flatnonzero(sensed)
     rows = pairs // n
     readings = np.maximum(
@@ -251,6 +258,5 @@ def neighbour_sectors(
         cos_h.reshape(-1)[rows],
         sin_h.reshape(-1)[rows],
     )
-    return sector_minimum(rows, bearings, readings, b * n, n_sectors).reshape(
-        b, n, n_sectors
-    )
+    sectors = sector_minimum(rows, bearings, readings, b * n, n_sectors)
+    return sectors.reshape(b, n, n_sectors), sensed

@@ -123,6 +123,11 @@ class BodyLayout:
         return sum(self.controlled)
 
 
+KINEMATICS = ("x", "y", "turning speed", "linear speed")
+"""The first task-state attributes of a group of bodies
+(:meth:`BodyState.kinematics`)."""
+
+
 @dataclass
 class BodyState:
     """Physical state of the bodies of the live trials, trial-local coordinates.
@@ -152,6 +157,17 @@ class BodyState:
     def speed(self) -> np.ndarray:
         """(B, R) linear speed |v|."""
         return np.hypot(self.velocity[..., 0], self.velocity[..., 1])
+
+    def kinematics(self, extra: int = 0) -> np.ndarray:
+        """(B, R, 4 + extra) task-state attributes :data:`KINEMATICS` (x, y,
+        turning speed = angular velocity, linear speed = |v|), then ``extra``
+        columns for the caller to fill."""
+        b, r = self.angle.shape
+        out = np.empty((b, r, len(KINEMATICS) + extra))
+        out[..., 0:2] = self.position
+        out[..., 2] = self.angular_velocity
+        out[..., 3] = self.speed
+        return out
 
 
 @dataclass

@@ -55,7 +55,7 @@ from typing import Literal
 
 import numpy as np
 
-from sdbc_sim.arena import WallRays, speed_and_turn
+from sdbc_sim.arena import WallRays, speed_and_turn, wall_group, wall_state
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     TWO_PI,
@@ -63,7 +63,6 @@ from sdbc_sim.sensors import (
     neighbour_sectors,
     norm,
     normalised_reading,
-    pairwise_offsets,
     robot_sum,
 )
 from sdbc_sim.settings import (
@@ -236,14 +235,7 @@ class GateEscape(Task):
                     static=True,
                     geometry=Geometry.POLYGON,
                 ),
-                EntityGroupSpec(
-                    name="Wall",
-                    attributes=(),
-                    min_size=1,
-                    max_size=1,
-                    static=True,
-                    geometry=Geometry.POLYGON,
-                ),
+                wall_group(),
             ),
         )
         self._wall_rays = WallRays(
@@ -252,7 +244,6 @@ class GateEscape(Task):
         self._not_self = ~np.eye(n, dtype=bool)
         self._radii = np.full((1, n), r)
         self._gate_segments = self.gate[None, None]
-        self._wall_segments = self.walls[None, None]
 
     def reset(
         self, rngs: list[np.random.Generator]
@@ -307,16 +298,18 @@ class GateEscape(Task):
         if seen.any():
             out[seen, 1] = bearing(gx[seen], gy[seen], cos_h[seen], sin_h[seen]) / np.pi
         # Other robots still inside, edge to edge.
-        dx, dy, dist = pairwise_offsets(pos)
-        edge = dist - 2.0 * c.robot_radius
-        sensed = (
-            (edge <= c.neighbour_range) & self._not_self & bodies.enabled[:, None, :]
+        arcs, sensed = neighbour_sectors(
+            pos,
+            cos_h,
+            sin_h,
+            c.robot_radius,
+            c.neighbour_range,
+            c.n_robot_arcs,
+            self._not_self & bodies.enabled[:, None, :],
         )
         count = robot_sum(sensed.astype(np.float64), axis=-1)
         out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
-        out[..., 3 : 3 + c.n_robot_arcs] = neighbour_sectors(
-            sensed, edge, dx, dy, cos_h, sin_h, c.neighbour_range, c.n_robot_arcs
-        )
+        out[..., 3 : 3 + c.n_robot_arcs] = arcs
         out[..., 3 + c.n_robot_arcs :] = self._wall_rays.read(pos, cos_h, sin_h)
         return out
 
@@ -354,16 +347,12 @@ class GateEscape(Task):
     ) -> tuple[GroupState, ...]:
         c = self.config
         pos = bodies.position
-        b, n = bodies.angle.shape
         passing = (
             (np.abs(pos[..., 0]) <= c.robot_radius)
             & (pos[..., 1] > self.gate_low)
             & (pos[..., 1] < self.gate_high)
         )
-        agents = np.empty((b, n, 5))
-        agents[..., 0:2] = pos
-        agents[..., 2] = bodies.angular_velocity
-        agents[..., 3] = bodies.speed
+        agents = bodies.kinematics(1)
         agents[..., 4] = passing
         closing = (trials.open_step >= 0).astype(np.float64)[:, None, None]
         return (
@@ -378,11 +367,7 @@ class GateEscape(Task):
                 attributes=closing,
                 segments=self._gate_segments,
             ),
-            GroupState(
-                present=np.ones((1, 1), dtype=bool),
-                attributes=np.empty((1, 1, 0)),
-                segments=self._wall_segments,
-            ),
+            wall_state(self.walls),
         )
 
     def results(

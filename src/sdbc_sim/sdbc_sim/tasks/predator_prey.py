@@ -385,11 +385,7 @@ class PredatorPrey(Task):
         self, trials: PredatorPreyTrials, bodies: BodyState
     ) -> tuple[GroupState, ...]:
         n = self.config.n_predators
-        b = bodies.angle.shape[0]
-        attributes = np.empty((b, n + 1, 4))
-        attributes[..., 0:2] = bodies.position
-        attributes[..., 2] = bodies.angular_velocity
-        attributes[..., 3] = bodies.speed
+        attributes = bodies.kinematics()
         centres = bodies.position.copy()
         return (
             GroupState(

@@ -32,15 +32,16 @@ the trial (a dead robot counts 0), N the team size.
 The deceptive optimum. e_bar averages over the trial's actual length (as the
 paper and the authors' code do), so a team that never charges scores more by
 dying sooner once its energy is low. Scanning every team whose robots stand still
-for w steps and then drive at speed s until they die (w = 0..476, s = 0, 0.1, ...,
-1, all 5247 through the engine), the best is w = 200, energy 500 - 200 x 1.05 =
+for w steps and then drive at speed s until they die (w = 0..476, s = 0, 0.05,
+..., 1, all 10017 through the engine), the best is w = 200, energy 500 - 200 x 1.05 =
 290, then full speed (drain 2): all dead at step 200 + 290 / 2 = 345. Each
 robot's energy sums to sum_{k=1}^{200} (500 - 1.05 k) + sum_{j=1}^{145}
 (290 - 2 j) = 78895 + 20880 = 99775, so e_bar = 99775 / 345 = 289.20 and
 F = 289.20 / 500 / 4 = 0.144601 (w = 199 gives 0.144402, w = 201 0.144383).
 Standing still until death (step 477) gives 118797.7 / 477 / 2000 = 0.1245. With
 ``energy_mean_over="max_steps"`` the w = 200 team scores 99775 / 500 / 2000 =
-0.0998, below standing still (0.1188): waiting to burn no longer pays.
+0.0998, and the best of these teams is standing still (0.1188): waiting to burn
+no longer pays.
 The harmonic mean over trials makes escaping the plateau fragile: an evolved
 charger scored about 0.372 in a trial where a robot charged and 0.122 where none
 did (measured in an earlier study), so a controller that charges in 1 of 5 trials
@@ -112,13 +113,12 @@ from typing import Literal
 
 import numpy as np
 
-from sdbc_sim.arena import draw_apart
+from sdbc_sim.arena import draw_team
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     bearing,
     neighbour_sectors,
     norm,
-    pairwise_offsets,
     robot_sum,
 )
 from sdbc_sim.settings import (
@@ -365,14 +365,9 @@ class ResourceSharing(Task):
         angle = np.empty((b, n))
         centre = (s / 2.0, s / 2.0)
         for t, rng in enumerate(rngs):
-            taken = [centre]
-            for i in range(n):
-                p = draw_apart(
-                    rng, r, s - r, c.start_separation, taken, self.name, f"robot {i}"
-                )
-                taken.append(p)
-                position[t, i] = p
-                angle[t, i] = rng.uniform(-np.pi, np.pi)
+            position[t], angle[t] = draw_team(
+                rng, n, r, s - r, c.start_separation, [centre], self.name
+            )
         trials = ResourceSharingTrials(
             energy=np.full((b, n), c.initial_energy),
             docked_steps=np.zeros((b, n), dtype=np.int64),
@@ -394,11 +389,8 @@ class ResourceSharing(Task):
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         # Other robots, dead ones too (obstacles); only the few in range.
-        dx, dy, dist = pairwise_offsets(pos)
-        edge = dist - 2.0 * c.robot_radius
-        sensed = (edge <= c.robot_sensor_range) & self._not_self
-        out[..., :k] = neighbour_sectors(
-            sensed, edge, dx, dy, cos_h, sin_h, c.robot_sensor_range, k
+        out[..., :k], _ = neighbour_sectors(
+            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, self._not_self
         )
         sx = self.station_centre[0] - pos[..., 0]
         sy = self.station_centre[1] - pos[..., 1]
@@ -463,11 +455,7 @@ class ResourceSharing(Task):
         self, trials: ResourceSharingTrials, bodies: BodyState
     ) -> tuple[GroupState, ...]:
         pos = bodies.position
-        b, n = bodies.angle.shape
-        agents = np.empty((b, n, 6))
-        agents[..., 0:2] = pos
-        agents[..., 2] = bodies.angular_velocity
-        agents[..., 3] = bodies.speed
+        agents = bodies.kinematics(2)
         agents[..., 4] = trials.energy
         agents[..., 5] = trials.charging
         occupied = trials.charging.any(axis=1).astype(np.float64)[:, None, None]
