@@ -279,7 +279,8 @@ class MessageRecorder:
 
 
 @pytest.mark.parametrize(
-    "task_name", ["gate_escape", "resource_sharing", "predator_prey"]
+    "task_name",
+    ["gate_escape", "resource_sharing", "predator_prey", "aggregation", "foraging"],
 )
 def test_engine_trials_give_the_same_vector_as_their_messages(task_name: str) -> None:
     from sdbc_sim.engine import run_batch
