@@ -75,6 +75,11 @@ def test_committed_digest_rebuilds_the_committed_tables_and_figures(
             assert rebuilt[name] == data, f"{folder}/{name}"
     # The rebuilt folder holds the digest too, the same bytes.
     assert tree_bytes(tmp_path / DIGEST_DIR) == tree_bytes(digest)
+    # The report too: made from the digest, it is the report the run directories
+    # gave (its commands are those that made the runs and the digest).
+    assert (tmp_path / REPORT_FILE).read_bytes() == (
+        COMMITTED / REPORT_FILE
+    ).read_bytes()
 
 
 @pytest.mark.slow

@@ -551,9 +551,13 @@ def write_report(
         "",
     ]
     lines += _wall_times(analysis)
-    runs = [shlex.join(s["command"]) for s in analysis.sessions if s.get("command")]
-    analyses = [list(c) for c in (study.command, command or ()) if c]
-    commands = list(dict.fromkeys(runs + [shlex.join(c) for c in analyses]))
+    shown = [shlex.join(s["command"]) for s in analysis.sessions if s.get("command")]
+    # The analysis that made the digest; a report made again from the digest
+    # (--from-digest) is the same report, so its own command is not added.
+    analysis_command = list(study.command) or list(command or ())
+    if analysis_command:
+        shown.append(shlex.join(analysis_command))
+    commands = list(dict.fromkeys(shown))
     if commands:
         lines += [
             f"Commands (a run's `--out` given as the study directory analysed, "
