@@ -5,7 +5,8 @@
   the planning notes the project started from (named in :data:`OUTSIDE_NAMES`),
   whose content lives in ``docs/`` now.
 - Every repository path that README.md or a page under docs/ cites (in backticks,
-  or as a Markdown link) exists.
+  or as a Markdown link) exists, and every section of a docs/ page that a text
+  cites by name (``docs/method.md, "Aggregation"``) is a heading there.
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ RELATIVE_PATH = re.compile(r"(?<![\w.])((?:\.\./)+)([\w.\-]+)")
 """A relative path that climbs: its ``../`` run and the component after it."""
 BACKTICKED = re.compile(r"`([^`\n]+)`")
 LINK = re.compile(r"\]\(([^)\s]+)\)")
+SECTION_CITATION = re.compile(r"(docs/[\w\-/]+\.md)[,:]?\s+\"([^\"\n]+)\"")
+"""A page of docs/ cited with a section: ``docs/method.md, "Aggregation"``."""
 PATH_LIKE = re.compile(r"[\w.\-]+(?:/[\w.\-+]*)+")
 """A span made of path components only (no spaces, placeholders or globs)."""
 
@@ -113,6 +116,22 @@ def documents() -> list[Path]:
     return [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 
 
+def missing_sections(text: str) -> list[str]:
+    """The ``docs/PAGE.md, "Section"`` citations of ``text`` whose page has no
+    heading holding that section's name."""
+    missing = []
+    for page, section in SECTION_CITATION.findall(text):
+        path = ROOT / page
+        headings = (
+            [line for line in path.read_text().splitlines() if line.startswith("#")]
+            if path.is_file()
+            else []
+        )
+        if not any(section.lower() in h.lower() for h in headings):
+            missing.append(f'{page}, "{section}"')
+    return missing
+
+
 def test_no_tracked_text_refers_outside_the_repository() -> None:
     offending = {}
     for path in tracked_text_files():
@@ -122,6 +141,20 @@ def test_no_tracked_text_refers_outside_the_repository() -> None:
         if found:
             offending[str(relative)] = found
     assert offending == {}
+
+
+def test_every_section_cited_in_docs_exists() -> None:
+    offending = {}
+    for path in tracked_text_files():
+        missing = missing_sections(path.read_text(errors="replace"))
+        if missing:
+            offending[str(path.relative_to(ROOT))] = missing
+    assert offending == {}
+
+
+def test_a_missing_section_is_caught() -> None:
+    text = 'see docs/method.md, "Aggregation" and docs/reference-setup.md "Nowhere"'
+    assert missing_sections(text) == ['docs/reference-setup.md, "Nowhere"']
 
 
 def test_every_path_cited_in_readme_and_docs_exists() -> None:
