@@ -10,6 +10,17 @@ from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskInfo, TaskS
 from sdbc_evolution.run.results import TIME_COLUMNS, read_generations, read_individuals
 from sdbc_sim.engine import controller_fitness
 
+TINY_RUN_YAML = """\
+task: gate_escape
+task_config: {max_steps: 60}
+treatment: ns-ts
+generations: 2
+ga: {population_size: 6, elites: 1, tournament_size: 2}
+novelty: {k: 3}
+evaluation: {trials: 2, reevaluation_trials: 2}
+"""
+"""A run on the real engine small enough for a test: 2 generations of 6."""
+
 TOY_INFO = TaskInfo(
     name="toy",
     genome_length=6,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -206,6 +207,7 @@ def test_a_checkpoint_from_before_a_setting_existed_resumes(tmp_path: Path) -> N
         small_config(generations=3), tmp_path, ToyEvaluator(), TOY_INFO
     )
     assert experiment.state.generation == 2
+    experiment.close()
     meta["config"]["weighting"]["update_every"] = 5
     arrays["meta"] = np.array(json.dumps(meta))
     np.savez(path, **arrays)
@@ -232,7 +234,80 @@ def test_a_corrupt_checkpoint_is_refused_and_nothing_changes(
         path.unlink()
     before = snapshot(tmp_path)
     expected = "no checkpoint" if damage == "missing" else "corrupt checkpoint"
-    with pytest.raises(CheckpointError, match=expected):
+    with pytest.raises(CheckpointError, match=expected) as refused:
+        Experiment.resume(
+            small_config(generations=4), tmp_path, ToyEvaluator(), TOY_INFO
+        )
+    assert snapshot(tmp_path) == before
+    if damage in ("garbage", "empty"):
+        # Not numpy's advice to load it as a pickle: it is simply not a checkpoint.
+        assert str(refused.value) == f"corrupt checkpoint {path}: not an .npz archive"
+
+
+@pytest.mark.parametrize("left_by", ["this version", "an older version"])
+def test_a_run_stopped_before_its_first_generation_goes_on_bit_identically(
+    tmp_path: Path, left_by: str
+) -> None:
+    run(small_config(generations=3), tmp_path / "straight")
+    stopped = tmp_path / "stopped"
+    Experiment.create(
+        small_config(generations=3), stopped, ToyEvaluator(), TOY_INFO
+    ).close()
+    if left_by == "this version":
+        # The generation-0 checkpoint: --resume works from the start.
+        resume(small_config(generations=3), stopped)
+    else:
+        # Older versions left a configuration and an empty generations.csv
+        # only: that counts as an empty directory, a fresh start takes it.
+        (stopped / "checkpoint.npz").unlink()
+        run(small_config(generations=3), stopped)
+    assert_same_run(tmp_path / "straight", stopped)
+
+
+def _damage(out: Path, how: str) -> Path:
+    individuals = out / "individuals" / "gen_00001.npz"
+    if how == "deleted individuals":
+        individuals.unlink()
+        return individuals
+    if how == "truncated individuals":
+        individuals.write_bytes(individuals.read_bytes()[:-40])
+        return individuals
+    if how == "foreign individuals":
+        with np.load(individuals) as data:
+            arrays = {k: data[k][:5] if data[k].ndim else data[k] for k in data.files}
+        np.savez_compressed(individuals, **arrays)
+        return individuals
+    if how == "cut csv":
+        lines = (out / "generations.csv").read_text().splitlines(keepends=True)
+        (out / "generations.csv").write_text("".join(lines[:-1]))
+        return out / "generations.csv"
+    if how == "duplicated rows":
+        lines = (out / "generations.csv").read_text().splitlines(keepends=True)
+        (out / "generations.csv").write_text("".join(lines[:2] + lines[1:]))
+        return out / "generations.csv"
+    best = np.load(out / "best_genomes.npy")
+    np.save(out / "best_genomes.npy", best[:1])
+    return out / "best_genomes.npy"
+
+
+DAMAGES = [
+    "deleted individuals",
+    "truncated individuals",
+    "foreign individuals",
+    "cut csv",
+    "duplicated rows",
+    "short best genomes",
+]
+
+
+@pytest.mark.parametrize("how", DAMAGES)
+def test_resume_refuses_a_run_whose_outputs_are_damaged_naming_the_file(
+    tmp_path: Path, how: str
+) -> None:
+    run(small_config(generations=3), tmp_path)
+    damaged = _damage(tmp_path, how)
+    before = snapshot(tmp_path)
+    with pytest.raises(CheckpointError, match=re.escape(f"cannot resume: {damaged}")):
         Experiment.resume(
             small_config(generations=4), tmp_path, ToyEvaluator(), TOY_INFO
         )
@@ -257,6 +332,7 @@ def test_a_finished_run_extends_when_generations_grow(tmp_path: Path) -> None:
         small_config(generations=3), tmp_path, ToyEvaluator(), TOY_INFO
     )
     assert experiment.finished
+    experiment.close()
     with pytest.raises(CheckpointError, match="beyond generations=2"):
         Experiment.resume(
             small_config(generations=2), tmp_path, ToyEvaluator(), TOY_INFO

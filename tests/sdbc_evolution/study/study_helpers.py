@@ -7,7 +7,9 @@ from pathlib import Path
 
 import numpy as np
 from sdbc_evolution.run.results import GENERATIONS_FILE, TIME_COLUMNS
+from sdbc_evolution.study.plan import study_plan
 from sdbc_evolution.study.presets import StudyPreset, preset_from_dict
+from sdbc_evolution.study.runner import Execution, run_study
 
 TINY = {
     "name": "tiny",
@@ -49,3 +51,16 @@ def run_contents(run: Path) -> dict[str, object]:
                 out[f"{file.name}:{key}"] = _exact(data[key])
     out["best_genomes"] = _exact(np.load(run / "best_genomes.npy"))
     return out
+
+
+def straight_study(preset: StudyPreset, root: Path) -> Path:
+    """``preset`` run in one go, in this process: what any other way of running
+    it must equal."""
+    run_study(preset, root, execution=Execution(workers=1), quiet=True)
+    return root
+
+
+def assert_same_study(preset: StudyPreset, a: Path, b: Path) -> None:
+    """Every run of the two study directories has the same results."""
+    for x, y in zip(study_plan(preset, a), study_plan(preset, b), strict=True):
+        assert run_contents(x.path) == run_contents(y.path), x.name

@@ -15,7 +15,7 @@ from sdbc_evolution.study.cli import main
 from sdbc_evolution.study.plan import LOG_FILE, RunProgress, run_status, study_plan
 from sdbc_evolution.study.presets import StudyPreset
 from sdbc_evolution.study.runner import Execution, run_study
-from study_helpers import TINY, run_contents
+from study_helpers import TINY, assert_same_study, straight_study
 
 
 @pytest.fixture
@@ -114,29 +114,22 @@ def test_measure_probes_every_treatment_and_projects_the_study(
     assert "gate_escape: 2 generations; projected study time" in capsys.readouterr().out
 
 
+def study_command(preset: Path, out: Path) -> list[str]:
+    """``sdbc-study run`` of ``preset`` into ``out``, in process, as a command."""
+    return [
+        sys.executable, "-m", "sdbc_evolution.study", "run", "--preset", str(preset),
+        "--out", str(out), "--workers", "1", "--quiet",
+    ]  # fmt: skip
+
+
 def test_shards_run_at_once_make_the_study_run_in_one_go(
     tiny_file: Path, tiny_preset: StudyPreset, tmp_path: Path
 ) -> None:
-    whole = tmp_path / "whole"
-    run_study(tiny_preset, whole, execution=Execution(workers=1), quiet=True)
+    whole = straight_study(tiny_preset, tmp_path / "whole")
     sharded = tmp_path / "sharded"
     shards = [
         subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "sdbc_evolution.study",
-                "run",
-                "--preset",
-                str(tiny_file),
-                "--out",
-                str(sharded),
-                "--workers",
-                "1",
-                "--quiet",
-                "--shard",
-                f"{k}/3",
-            ],
+            [*study_command(tiny_file, sharded), "--shard", f"{k}/3"],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
         )
@@ -145,10 +138,56 @@ def test_shards_run_at_once_make_the_study_run_in_one_go(
     for shard in shards:
         _, err = shard.communicate(timeout=300)
         assert shard.returncode == 0, err.decode()
-    for a, b in zip(
-        study_plan(tiny_preset, whole), study_plan(tiny_preset, sharded), strict=True
-    ):
-        assert run_contents(a.path) == run_contents(b.path)
+    assert_same_study(tiny_preset, whole, sharded)
     log = [json.loads(line) for line in (sharded / LOG_FILE).read_text().splitlines()]
     assert sorted(e["shard"] for e in log) == ["0/3", "1/3", "2/3"]
     assert sorted(e["worked_on"] for e in log) == [1, 1, 2]
+
+
+def test_two_sessions_at_once_on_one_study_share_its_runs(
+    tiny_file: Path, tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    whole = straight_study(tiny_preset, tmp_path / "whole")
+    shared = tmp_path / "shared"
+    command = study_command(tiny_file, shared)
+    sessions = [
+        subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        for _ in range(2)
+    ]
+    for session in sessions:
+        _, err = session.communicate(timeout=300)
+        # 3: it left runs to the other session, and said so.
+        assert session.returncode in (0, 3), err.decode()
+        if session.returncode == 3:
+            assert b"were being written by another process" in err
+    third = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert third.returncode == 0, third.stderr
+    assert "4 of 4 runs already finished: skipped" in third.stderr
+    assert_same_study(tiny_preset, whole, shared)
+
+
+def test_a_busy_run_ends_the_session_with_exit_3(
+    tiny_file: Path,
+    tiny_preset: StudyPreset,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from sdbc_evolution.run.lock import RunLock
+
+    out = tmp_path / "study"
+    spec = study_plan(tiny_preset, out)[0]
+    with RunLock(spec.path):
+        status = main(
+            [
+                "run",
+                "--preset",
+                str(tiny_file),
+                "--out",
+                str(out),
+                "--workers",
+                "1",
+                "--quiet",
+            ]
+        )
+    assert status == 3
+    assert "1 run(s) were being written by another process" in capsys.readouterr().err

@@ -15,6 +15,7 @@ import yaml
 from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.run.evaluators import LocalEvaluator
 from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.lock import RunLock
 from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.study import runner
 from sdbc_evolution.study.plan import (
@@ -38,7 +39,7 @@ from sdbc_evolution.study.runner import (
     StudyError,
     run_study,
 )
-from study_helpers import TINY, run_contents
+from study_helpers import TINY, assert_same_study, run_contents, straight_study
 
 
 def files(root: Path) -> dict[str, bytes]:
@@ -123,8 +124,7 @@ def test_a_second_run_skips_finished_runs_and_touches_nothing(
 def test_an_interrupted_run_resumes_to_the_same_results(
     tiny_preset: StudyPreset, tmp_path: Path
 ) -> None:
-    straight = tmp_path / "straight"
-    run_study(tiny_preset, straight, execution=Execution(workers=1), quiet=True)
+    straight = straight_study(tiny_preset, tmp_path / "straight")
     resumed = tmp_path / "resumed"
     spec = study_plan(tiny_preset, resumed)[1]
     with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
@@ -136,10 +136,7 @@ def test_an_interrupted_run_resumes_to_the_same_results(
     )
     resumed_run = next(r for r in outcome.ran if r.name == spec.name)
     assert resumed_run.finished and resumed_run.generations_done == 2
-    for a, b in zip(
-        study_plan(tiny_preset, straight), study_plan(tiny_preset, resumed), strict=True
-    ):
-        assert run_contents(a.path) == run_contents(b.path), a.name
+    assert_same_study(tiny_preset, straight, resumed)
     segments = json.loads((spec.path / EXECUTION_FILE).read_text())
     assert [(s["from_generation"], s["to_generation"]) for s in segments] == [(1, 2)]
 
@@ -147,8 +144,7 @@ def test_an_interrupted_run_resumes_to_the_same_results(
 def test_a_run_without_usable_checkpoint_is_moved_aside_and_run_again(
     tiny_preset: StudyPreset, tmp_path: Path
 ) -> None:
-    root = tmp_path / "study"
-    run_study(tiny_preset, root, execution=Execution(workers=1), quiet=True)
+    root = straight_study(tiny_preset, tmp_path / "study")
     spec = study_plan(tiny_preset, root)[0]
     (spec.path / "checkpoint.npz").write_bytes(b"PK\x03\x04 not a zip")
     said: list[str] = []
@@ -161,6 +157,58 @@ def test_a_run_without_usable_checkpoint_is_moved_aside_and_run_again(
     assert any(spec.name in line and "cannot resume" in line for line in said)
     assert run_status(spec).state is RunProgress.FINISHED
     assert len(outcome.skipped) == 3
+
+
+@pytest.mark.parametrize("damage", ["individuals deleted", "csv cut"])
+def test_a_finished_run_with_damaged_outputs_is_moved_aside_and_run_again(
+    tiny_preset: StudyPreset, tmp_path: Path, damage: str
+) -> None:
+    straight = straight_study(tiny_preset, tmp_path / "straight")
+    root = straight_study(tiny_preset, tmp_path / "study")
+    spec = study_plan(tiny_preset, root)[2]
+    if damage == "individuals deleted":
+        (spec.path / "individuals" / "gen_00001.npz").unlink()
+    else:
+        csv_file = spec.path / "generations.csv"
+        csv_file.write_text("".join(csv_file.read_text().splitlines(True)[:-1]))
+    status = run_status(spec)
+    assert status.state is RunProgress.BROKEN
+    said: list[str] = []
+    outcome = run_study(
+        tiny_preset, root, execution=Execution(workers=1), quiet=True, say=said.append
+    )
+    assert [name for name, _, _ in outcome.discarded] == [spec.name]
+    assert any(spec.name in line and status.detail in line for line in said)
+    assert [r.name for r in outcome.ran if r.finished] == [spec.name]
+    assert_same_study(tiny_preset, straight, root)
+
+
+def test_a_run_another_process_writes_is_left_to_it(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    root = tmp_path / "study"
+    spec = study_plan(tiny_preset, root)[1]
+    said: list[str] = []
+    with RunLock(spec.path):
+        outcome = run_study(
+            tiny_preset,
+            root,
+            execution=Execution(workers=1),
+            quiet=True,
+            say=said.append,
+        )
+        assert outcome.busy == [spec.name]
+        assert run_status(spec).state is RunProgress.NEW
+    assert any(
+        line.startswith(f"{spec.name}: left alone: {spec.path} is being written")
+        for line in said
+    )
+    assert sorted(r.name for r in outcome.ran if r.finished) == sorted(
+        s.name for s in study_plan(tiny_preset, root) if s.name != spec.name
+    )
+    again = run_study(tiny_preset, root, execution=Execution(workers=1), quiet=True)
+    assert [r.name for r in again.ran if r.finished] == [spec.name]
+    assert not again.busy
 
 
 def test_a_directory_of_another_study_is_refused(
@@ -179,8 +227,7 @@ def test_runs_side_by_side_and_on_dask_equal_runs_in_process(
 ) -> None:
     from distributed import LocalCluster
 
-    one = tmp_path / "one"
-    run_study(tiny_preset, one, execution=Execution(workers=1), quiet=True)
+    one = straight_study(tiny_preset, tmp_path / "one")
     two = tmp_path / "two"
     outcome = run_study(tiny_preset, two, execution=Execution(workers=2), quiet=True)
     assert not outcome.failed and all(r.finished for r in outcome.ran)

@@ -318,12 +318,13 @@ class EvolutionNode(Node):
                     f"({self.evaluator_name} evaluation)"
                 )
                 started = time.monotonic()
-                while not experiment.finished and not self.stop.is_set():
-                    population = experiment.state.population
-                    record = experiment.step()
-                    self._publish(experiment, record, population, started)
-                    if self.replay_after_generation:
-                        self._replay_or_stop_replaying()
+                with experiment:  # releases the run directory's lock
+                    while not experiment.finished and not self.stop.is_set():
+                        population = experiment.state.population
+                        record = experiment.step()
+                        self._publish(experiment, record, population, started)
+                        if self.replay_after_generation:
+                            self._replay_or_stop_replaying()
             if not self.stop.is_set():
                 self.get_logger().info(f"run complete: results in {self.out}")
         except Exception as err:  # the thread's failure must reach the exit status

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from sdbc_evolution.run.results import atomic_write_bytes, npz_bytes
+from sdbc_evolution.run.results import atomic_write_bytes, load_npz, npz_bytes
 
 FORMAT_VERSION = 1
 """Bumped whenever the checkpoint's content changes meaning."""
@@ -117,7 +117,7 @@ def load_checkpoint(path: str | Path, config: dict[str, Any]) -> Checkpoint:
     if not path.is_file():
         raise CheckpointError(f"no checkpoint at {path}: nothing to resume")
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with load_npz(path) as data:
             missing = sorted(set(_ARRAYS + ("meta",)) - set(data.files))
             if missing:
                 raise CheckpointError(f"corrupt checkpoint {path}: missing {missing}")
@@ -126,9 +126,8 @@ def load_checkpoint(path: str | Path, config: dict[str, Any]) -> Checkpoint:
     except CheckpointError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as error:
-        raise CheckpointError(
-            f"corrupt checkpoint {path}: {type(error).__name__}: {error}"
-        ) from None
+        detail = str(error).removeprefix(f"{path}: ")
+        raise CheckpointError(f"corrupt checkpoint {path}: {detail}") from None
     if not isinstance(meta, dict) or meta.get("format_version") != FORMAT_VERSION:
         version = meta.get("format_version") if isinstance(meta, dict) else None
         raise CheckpointError(
@@ -207,7 +206,7 @@ def _check_shapes(path: Path, c: Checkpoint) -> None:
     a = c.archive_behaviours.shape[0] if c.archive_behaviours.ndim == 2 else -1
     ok = (
         n >= 0
-        and c.generation >= 1
+        and c.generation >= 0
         and c.parent.shape == (n,)
         and c.elite.shape == (n,)
         and a >= 0

@@ -31,11 +31,16 @@ import numpy as np
 from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import ConfigError, Treatment, check_task_config
 from sdbc_evolution.run.evaluators import (
+    SchedulerLost,
     SchedulerUnreachable,
+    TaskInfo,
     add_evaluator_arguments,
     make_evaluator,
+    quiet_dask_logging,
 )
 from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
+from sdbc_evolution.run.footprint import check_footprint
+from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.request import (
     RESULTS_ROOT,
     ConfigRequest,
@@ -44,6 +49,7 @@ from sdbc_evolution.run.request import (
 )
 from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.run.stopping import stoppable
+from sdbc_evolution.run.system_errors import one_line_errors
 
 GIF_NAME = "best.gif"
 """The best individual's trial, rendered in the output directory."""
@@ -138,6 +144,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"sdbc-evolve: error: {error}", file=sys.stderr)
             return 2
         return 0
+    return one_line_errors("sdbc-evolve", lambda: _main(args))
+
+
+def _main(args: argparse.Namespace) -> int:
     try:
         config = resolve_config(config_request(args))
         # The task's own settings too, so that a bad one stops before any run.
@@ -145,6 +155,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.workers is not None and args.workers < 1:
             raise ConfigError(f"--workers: must be at least 1, got {args.workers}")
         out = args.out if args.out is not None else default_out(config)
+        if out.exists() and not out.is_dir():
+            raise ConfigError(f"--out {out}: a file, not a directory")
+        check_footprint(config, TaskInfo.of(task_spec(config)))
+        if args.scheduler is not None:
+            quiet_dask_logging()
         evaluator = make_evaluator(
             task_spec(config),
             workers=args.workers,
@@ -160,10 +175,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 experiment = Experiment.resume(config, out, evaluator)
             else:
                 experiment = Experiment.create(config, out, evaluator)
-        except (CheckpointError, ExperimentError, ValueError) as error:
+        except (CheckpointError, ExperimentError, RunBusy, ValueError) as error:
             print(f"sdbc-evolve: error: {error}", file=sys.stderr)
             return 2
-        status = _run(experiment, out, quiet=args.quiet)
+        with experiment:
+            status = _run(experiment, out, quiet=args.quiet)
     if status == 0:
         _report(experiment, out, gif=not args.no_gif)
     return status
@@ -192,6 +208,14 @@ def _run(experiment: Experiment, out: Path, quiet: bool) -> int:
     try:
         with stoppable():
             experiment.run(progress)
+    except SchedulerLost as error:
+        bar.close()
+        print(
+            f"sdbc-evolve: error: {error}; continue with: sdbc-evolve --resume "
+            f"--out {out} --scheduler ADDRESS",
+            file=sys.stderr,
+        )
+        return 2
     except KeyboardInterrupt:
         bar.close()
         print(

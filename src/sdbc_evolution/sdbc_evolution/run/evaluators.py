@@ -14,8 +14,14 @@ same arrays to the bit.
   process pool (default: every core), one chunk per worker, made by
   :mod:`sdbc_evolution.run.processes` like every process of the project.
 - :class:`DaskEvaluator`: a Dask cluster, for users who outgrow one machine; the
-  scheduler's address as ``tcp://host:port``. Its workers need this package
-  importable.
+  scheduler's address as ``tcp://host:port`` or ``tls://host:port``. Its workers
+  need this package importable. TLS settings come from Dask's own configuration
+  (``distributed.comm.tls.*``: a Dask YAML file, or the environment variables
+  ``DASK_DISTRIBUTED__COMM__TLS__CA_FILE``, ``..._CLIENT__CERT``,
+  ``..._CLIENT__KEY``), or a ``distributed.security.Security`` passed in.
+  Dask pickles task arguments: whoever reaches the scheduler runs code on the
+  workers, so a scheduler must only be reachable by its users (TLS with client
+  certificates, or a private network).
 
 Workers build the task themselves from a :class:`TaskSpec` (name + overrides), once
 per process, so nothing heavier than genomes and seeds crosses process boundaries.
@@ -25,11 +31,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import CancelledError, ProcessPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -37,6 +44,8 @@ from sdbc_evolution.run.processes import available_cores, worker_pool
 
 DEFAULT_CONNECT_TIMEOUT = 10.0
 """Seconds to wait for a Dask scheduler before giving up."""
+LOST_POLL_SECONDS = 0.05
+"""How often a Dask evaluation looks whether its scheduler is still there."""
 
 
 @dataclass(frozen=True)
@@ -262,10 +271,39 @@ class LocalEvaluator(Evaluator):
 
 
 class SchedulerUnreachable(ConnectionError):
-    """No Dask scheduler answered at the given address in time."""
+    """No Dask scheduler answered at the given address in time, or it has no
+    workers."""
 
 
-def _probe_scheduler(address: str, timeout: float) -> None:
+class SchedulerLost(ConnectionError):
+    """The Dask scheduler went away during a run (the checkpoint is intact)."""
+
+
+def _refuses(address: str, timeout: float) -> str | None:
+    """ "connection refused" if nothing listens at a ``tcp://``/``tls://``
+    address: Dask's own connect retries a refused port until its timeout."""
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address)
+    if parts.scheme not in ("tcp", "tls") or parts.hostname is None:
+        return None
+    try:
+        port = parts.port
+    except ValueError:
+        return None
+    if port is None:
+        return None
+    try:
+        with socket.create_connection((parts.hostname, port), timeout=timeout):
+            return None
+    except ConnectionRefusedError:
+        return "connection refused"
+    except OSError:
+        return None  # let Dask's connect say what it finds
+
+
+def _probe_scheduler(address: str, timeout: float, security: Any) -> None:
     """Asks ``address`` who it is, giving up after ``timeout`` seconds.
 
     Creating a ``distributed.Client`` against a dead address leaves a half-built
@@ -276,8 +314,16 @@ def _probe_scheduler(address: str, timeout: float) -> None:
 
     from distributed.comm import connect
 
+    refused = _refuses(address, timeout)
+    if refused is not None:
+        raise SchedulerUnreachable(
+            f"no Dask scheduler at {address!r}: {refused} (is it running? is the "
+            "port right?)"
+        )
+    connection_args = security.get_connection_args("client")
+
     async def identity() -> Any:
-        comm = await connect(address, timeout=timeout)
+        comm = await connect(address, timeout=timeout, **connection_args)
         try:
             await comm.write({"op": "identity", "reply": True})
             return await comm.read()
@@ -308,22 +354,46 @@ class DaskEvaluator(Evaluator):
 
     Args:
         spec: The task.
-        address: The scheduler, e.g. ``tcp://10.0.0.5:8786``.
-        timeout: Seconds to wait for the scheduler before raising
-            :class:`SchedulerUnreachable`.
+        address: The scheduler, e.g. ``tcp://10.0.0.5:8786`` or ``tls://...``.
+        timeout: Seconds to wait for the scheduler, and then for its first worker,
+            before raising :class:`SchedulerUnreachable`.
+        security: TLS settings; default: Dask's configuration (see the module
+            docstring).
+
+    Raises:
+        SchedulerUnreachable: Refused, silent, not a Dask scheduler, or no
+            worker within ``timeout``.
     """
 
     def __init__(
-        self, spec: TaskSpec, address: str, timeout: float = DEFAULT_CONNECT_TIMEOUT
+        self,
+        spec: TaskSpec,
+        address: str,
+        timeout: float = DEFAULT_CONNECT_TIMEOUT,
+        security: Any = None,
     ) -> None:
         from distributed import Client
+        from distributed.security import Security
 
         if not (math.isfinite(timeout) and timeout > 0):
             raise ValueError(f"timeout must be positive, got {timeout}")
         self.spec = spec
         self.address = address
-        _probe_scheduler(address, timeout)
-        self._client = Client(address, timeout=timeout, set_as_default=False)
+        self.timeout = timeout
+        security = security if security is not None else Security()
+        _probe_scheduler(address, timeout, security)
+        self._client = Client(
+            address, timeout=timeout, security=security, set_as_default=False
+        )
+        try:
+            self._client.wait_for_workers(1, timeout=timeout)
+        except TimeoutError:
+            self._client.close()
+            raise SchedulerUnreachable(
+                f"the Dask scheduler at {address!r} has no workers (waited "
+                f"{timeout:g} s, --connect-timeout): start some with "
+                f"`dask worker {address}`"
+            ) from None
 
     @property
     def workers(self) -> int:
@@ -339,10 +409,49 @@ class DaskEvaluator(Evaluator):
             )
             for a, b in bounds
         ]
-        return self._client.gather(futures)
+        self._wait(futures)
+        try:
+            return self._client.gather(futures)
+        except (OSError, CancelledError) as error:
+            # CommClosedError is an OSError; a lost scheduler cancels futures.
+            if self._client.status == "running" and isinstance(error, OSError):
+                raise
+            self._lost(type(error).__name__)
+            raise  # not reached: _lost raises
+
+    def _wait(self, futures: list[Any]) -> None:
+        """Waits for ``futures``; a scheduler gone for ``timeout`` seconds raises
+        :class:`SchedulerLost` (the client itself would wait for it forever)."""
+        gone_since: float | None = None
+        while not all(future.done() for future in futures):
+            if self._client.status == "running":
+                gone_since = None
+            else:
+                gone_since = gone_since or time.monotonic()
+                if time.monotonic() - gone_since > self.timeout:
+                    self._lost(f"client {self._client.status} for {self.timeout:g} s")
+            time.sleep(LOST_POLL_SECONDS)
+
+    def _lost(self, detail: str) -> NoReturn:
+        raise SchedulerLost(
+            f"lost the Dask scheduler at {self.address!r} ({detail}); the run's "
+            "checkpoint is intact"
+        )
 
     def close(self) -> None:
         self._client.close()
+
+
+def quiet_dask_logging() -> None:
+    """Keeps Dask's client from logging tracebacks to the terminal (one per
+    failed reconnection to a lost scheduler): a command says what happened in
+    one line of its own. Warnings of the workers' code still come through."""
+    import logging
+
+    import distributed  # noqa: F401 (sets its loggers' levels when imported)
+
+    for name in ("distributed.client", "distributed.comm", "distributed.core"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
 def make_evaluator(

@@ -19,7 +19,13 @@ the bit-identical resume contract):
 The run's two generators are children of ``np.random.SeedSequence(seed)``. A run
 stopped anywhere and resumed from its checkpoint repeats nothing and skips nothing:
 outputs of a generation whose checkpoint was not written are dropped on resume and
-produced again, identically.
+produced again, identically. :meth:`Experiment.create` writes the checkpoint of
+generation 0, so a run stopped before its first generation ends resumes too.
+
+One process writes a run: create and resume take the directory's lock
+(``sdbc_evolution.run.lock``) before writing anything and hold it until
+:meth:`Experiment.close`. Resume also checks every output the checkpoint vouches
+for (``ResultsDirectory.verify``) and names the first damaged file.
 """
 
 from __future__ import annotations
@@ -46,7 +52,8 @@ from sdbc_evolution.run.checkpoint import (
 )
 from sdbc_evolution.run.config import ExperimentConfig, dump_config
 from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
-from sdbc_evolution.run.results import GenerationRecord, ResultsDirectory
+from sdbc_evolution.run.lock import RunLock
+from sdbc_evolution.run.results import GenerationRecord, ResultsDirectory, RunDamaged
 
 TRIAL_SEED_BOUND = 2**63 - 1
 """Trial seeds are drawn uniformly from [0, 2^63 - 1)."""
@@ -70,6 +77,15 @@ class _PhaseClock:
 
 class ExperimentError(RuntimeError):
     """A run that cannot start or go on; the message says why."""
+
+
+def _locked(out_dir: str | Path, lock: RunLock | None) -> RunLock:
+    """The output directory's lock: the caller's, checked, or taken now."""
+    if lock is None:
+        return RunLock(out_dir).acquire()
+    if not lock.held or lock.directory != Path(out_dir):
+        raise ValueError(f"the lock given is not a held lock of {out_dir}")
+    return lock
 
 
 def task_spec(config: ExperimentConfig) -> TaskSpec:
@@ -115,6 +131,8 @@ class Experiment:
         info: The task's sizes and SDBC dimension names.
         state: The state before the next generation.
         results: The output directory.
+        lock: The held lock of the output directory; :meth:`close` (or the end
+            of a ``with`` block, or the process) releases it.
     """
 
     def __init__(
@@ -124,13 +142,25 @@ class Experiment:
         info: TaskInfo,
         state: RunState,
         results: ResultsDirectory,
+        lock: RunLock,
     ) -> None:
         self.config = config
         self.evaluator = evaluator
         self.info = info
         self.state = state
         self.results = results
+        self.lock = lock
         self.timings: dict[str, float] = {}
+
+    def close(self) -> None:
+        """Releases the output directory to other writers."""
+        self.lock.release()
+
+    def __enter__(self) -> Experiment:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     @property
     def generations(self) -> int:
@@ -148,12 +178,24 @@ class Experiment:
         out_dir: str | Path,
         evaluator: Evaluator,
         info: TaskInfo | None = None,
+        lock: RunLock | None = None,
     ) -> Experiment:
-        """Starts a new run in ``out_dir``, which must not hold one already."""
+        """Starts a new run in ``out_dir``, which must not hold one already, and
+        writes its generation-0 checkpoint (so it resumes from the start).
+
+        Args:
+            lock: The directory's lock if the caller holds it already.
+
+        Raises:
+            RunBusy: Another process writes ``out_dir``.
+            ExperimentError: ``out_dir`` holds a run.
+        """
         config = config.resolved()
         info = info or TaskInfo.of(task_spec(config))
         results = ResultsDirectory(out_dir, info.sdbc_names)
+        lock = _locked(out_dir, lock)
         if results.holds_a_run():
+            lock.release()
             raise ExperimentError(
                 f"{results.path} already holds a run: resume it (--resume) or choose "
                 "another output directory"
@@ -176,8 +218,14 @@ class Experiment:
             rng=rng,
             reevaluation_rng=np.random.default_rng(reevaluation_seed),
         )
-        results.create(dump_config(config))
-        return cls(config, evaluator, info, state, results)
+        experiment = cls(config, evaluator, info, state, results, lock)
+        try:
+            results.create(dump_config(config))
+            save_checkpoint(results.checkpoint_path, experiment._checkpoint())
+        except BaseException:
+            lock.release()
+            raise
+        return experiment
 
     @classmethod
     def resume(
@@ -186,17 +234,42 @@ class Experiment:
         out_dir: str | Path,
         evaluator: Evaluator,
         info: TaskInfo | None = None,
+        lock: RunLock | None = None,
     ) -> Experiment:
         """Continues the run in ``out_dir`` from its checkpoint.
 
+        Args:
+            lock: The directory's lock if the caller holds it already.
+
         Raises:
+            RunBusy: Another process writes ``out_dir``.
             CheckpointError: The checkpoint is missing, corrupt, or from another
-                task or configuration (``generations`` may change). Nothing in
+                task or configuration (``generations`` may change), or an output
+                it vouches for is missing or damaged (named). Nothing in
                 ``out_dir`` is touched then.
         """
         config = config.resolved()
         info = info or TaskInfo.of(task_spec(config))
         results = ResultsDirectory(out_dir, info.sdbc_names)
+        if not Path(out_dir).is_dir():
+            raise CheckpointError(f"no run at {out_dir}: nothing to resume")
+        lock = _locked(out_dir, lock)
+        try:
+            experiment = cls._resume(config, info, results, evaluator, lock)
+        except BaseException:
+            lock.release()
+            raise
+        return experiment
+
+    @classmethod
+    def _resume(
+        cls,
+        config: ExperimentConfig,
+        info: TaskInfo,
+        results: ResultsDirectory,
+        evaluator: Evaluator,
+        lock: RunLock,
+    ) -> Experiment:
         checkpoint = load_checkpoint(results.checkpoint_path, config.to_dict())
         n = config.ga.population_size
         if checkpoint.population.shape != (n, info.genome_length):
@@ -211,6 +284,10 @@ class Experiment:
                 f"{checkpoint.generation}, beyond generations="
                 f"{config.resolved_generations}"
             )
+        try:
+            results.verify(checkpoint.generation, n)
+        except RunDamaged as error:
+            raise CheckpointError(f"cannot resume: {error}") from None
         try:
             results.truncate(checkpoint.generation)
         except (OSError, ValueError) as error:
@@ -233,7 +310,7 @@ class Experiment:
             reevaluation_rng=generator_from_state(checkpoint.reevaluation_rng),
         )
         results.write_config(dump_config(config))
-        return cls(config, evaluator, info, state, results)
+        return cls(config, evaluator, info, state, results, lock)
 
     def run(
         self, on_generation: Callable[[GenerationRecord], None] | None = None

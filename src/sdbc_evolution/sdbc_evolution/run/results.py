@@ -62,6 +62,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sdbc_evolution.run.system_errors import named
+
 CONFIG_FILE = "config.yaml"
 GENERATIONS_FILE = "generations.csv"
 BEST_GENOMES_FILE = "best_genomes.npy"
@@ -92,7 +94,10 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Writes ``data`` to ``path`` through a temporary file and a rename, so a
     reader (or a crash) never sees half a file."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as error:
+        raise named(error, path) from error
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -101,6 +106,9 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         # mkstemp makes the file private; results are for whoever may read the dir.
         os.chmod(tmp, RESULT_FILE_MODE)
         os.replace(tmp, path)
+    except OSError as error:
+        Path(tmp).unlink(missing_ok=True)
+        raise named(error, path) from error
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -160,6 +168,65 @@ def _cell(value: float | int) -> str:
     return "" if math.isnan(value) else repr(value)
 
 
+INDIVIDUALS_ARRAYS = (
+    "fitness",
+    "trial_fitness",
+    "characterisation",
+    "sdbc",
+    "novelty",
+    "front",
+    "rank",
+    "archived",
+    "parent",
+    "elite",
+)
+"""The per-individual arrays of an individuals file (besides ``sdbc_names``)."""
+
+
+class RunDamaged(ValueError):
+    """An output a run's checkpoint vouches for is missing or damaged."""
+
+
+def load_npz(path: Path) -> np.lib.npyio.NpzFile:
+    """Opens an ``.npz`` archive without pickles.
+
+    Raises:
+        ValueError: The file is not a zip archive (numpy would otherwise take it
+            for a pickle and suggest loading it unsafely).
+        OSError: It cannot be read.
+    """
+    if not zipfile.is_zipfile(path):
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"{path}: no such file")
+        raise ValueError(f"{path}: not an .npz archive")
+    return np.load(path, allow_pickle=False)
+
+
+def check_individuals(path: Path, population_size: int) -> None:
+    """Reads every array of an individuals file (zip checksums included).
+
+    Raises:
+        RunDamaged: Missing, unreadable, or not of ``population_size`` rows.
+    """
+    try:
+        with load_npz(path) as data:
+            missing = sorted(set(INDIVIDUALS_ARRAYS) - set(data.files))
+            if missing:
+                raise RunDamaged(f"{path}: missing arrays {missing}")
+            for name in INDIVIDUALS_ARRAYS:
+                rows = data[name].shape[:1]
+                if rows != (population_size,):
+                    raise RunDamaged(
+                        f"{path}: {name} has {rows[0] if rows else 0} rows, the run's "
+                        f"population is {population_size}"
+                    )
+    except RunDamaged:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
+        detail = str(error) if str(path) in str(error) else f"{path}: {error}"
+        raise RunDamaged(detail) from None
+
+
 class ResultsDirectory:
     """Reads and writes one experiment's output directory.
 
@@ -185,11 +252,15 @@ class ResultsDirectory:
         return self.path / INDIVIDUALS_DIR / f"gen_{generation:05d}.npz"
 
     def holds_a_run(self) -> bool:
-        """True if the directory already holds results of some run."""
-        names = (CONFIG_FILE, GENERATIONS_FILE, BEST_GENOMES_FILE, CHECKPOINT_FILE)
-        return any((self.path / n).exists() for n in names) or (
-            (self.path / INDIVIDUALS_DIR).is_dir()
-            and any((self.path / INDIVIDUALS_DIR).iterdir())
+        """True if the directory holds something of a run: a checkpoint (a run
+        writes one at generation 0), an individuals file or a generation's row.
+        A configuration and an empty ``generations.csv`` alone, as older versions
+        left a run stopped before its first generation, are not a run."""
+        individuals = self.path / INDIVIDUALS_DIR
+        return (
+            (self.path / CHECKPOINT_FILE).exists()
+            or (individuals.is_dir() and any(individuals.iterdir()))
+            or _has_data_rows(self.path / GENERATIONS_FILE)
         )
 
     def create(self, config_yaml: str) -> None:
@@ -208,15 +279,30 @@ class ResultsDirectory:
         individuals: dict[str, np.ndarray],
         best_genome: np.ndarray,
     ) -> None:
-        """Writes one generation's outputs (the checkpoint comes after)."""
+        """Writes one generation's outputs (the checkpoint comes after).
+
+        Raises:
+            RuntimeError: ``generations.csv`` does not hold exactly the rows of the
+                generations before this one: another writer got in (the run's
+                lock should make that impossible), so nothing is written.
+        """
+        rows = len(self.read_rows())
+        if rows != record.generation:
+            raise RuntimeError(
+                f"{self.path / GENERATIONS_FILE} holds {rows} generations before "
+                f"generation {record.generation}: another process wrote to this run"
+            )
         atomic_write_bytes(
             self.individuals_path(record.generation),
             npz_bytes({**individuals, "sdbc_names": np.array(self.sdbc_names)}),
         )
-        with open(self.path / GENERATIONS_FILE, "a", newline="") as f:
-            csv.writer(f).writerow(record.row(len(self.sdbc_names)))
-            f.flush()
-            os.fsync(f.fileno())
+        try:
+            with open(self.path / GENERATIONS_FILE, "a", newline="") as f:
+                csv.writer(f).writerow(record.row(len(self.sdbc_names)))
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as error:
+            raise named(error, self.path / GENERATIONS_FILE) from error
         best = self.best_genomes()
         if best.size == 0:
             best = np.zeros((0, best_genome.shape[0]))
@@ -229,6 +315,38 @@ class ResultsDirectory:
             self.path / BEST_GENOMES_FILE,
             _npy_bytes(np.concatenate([best, best_genome[None]])),
         )
+
+    def verify(self, generations: int, population_size: int) -> None:
+        """Checks that every output of generations ``0 .. generations - 1`` (what a
+        checkpoint after them vouches for) is there and whole: their rows of
+        ``generations.csv``, in order; their rows of ``best_genomes.npy``; and
+        each individuals file, a readable archive of ``population_size`` rows.
+        Outputs of later generations are not checked (resuming drops them).
+
+        Raises:
+            RunDamaged: Naming the first damaged file and what is wrong with it.
+        """
+        try:
+            rows = self.read_rows()
+        except (OSError, ValueError, csv.Error) as error:
+            raise RunDamaged(f"{self.path / GENERATIONS_FILE}: {error}") from None
+        numbers = [r[0] if r else "" for r in rows[:generations]]
+        if numbers != [str(g) for g in range(generations)]:
+            raise RunDamaged(
+                f"{self.path / GENERATIONS_FILE}: generations {_listed(numbers)} "
+                f"where the checkpoint needs 0 to {generations - 1}"
+            )
+        try:
+            best = np.load(self.path / BEST_GENOMES_FILE, allow_pickle=False)
+        except (OSError, ValueError, EOFError) as error:
+            raise RunDamaged(f"{self.path / BEST_GENOMES_FILE}: {error}") from None
+        if generations and (best.ndim != 2 or best.shape[0] < generations):
+            raise RunDamaged(
+                f"{self.path / BEST_GENOMES_FILE}: shape {best.shape}, the "
+                f"checkpoint needs {generations} rows"
+            )
+        for g in range(generations):
+            check_individuals(self.individuals_path(g), population_size)
 
     def truncate(self, generations: int) -> None:
         """Drops every output of generation ``generations`` and later (left by a run
@@ -272,6 +390,19 @@ class ResultsDirectory:
         writer.writerow(self.columns)
         writer.writerows(rows)
         atomic_write_bytes(self.path / GENERATIONS_FILE, buffer.getvalue().encode())
+
+
+def _listed(numbers: list[str]) -> str:
+    shown = ", ".join(numbers[:6]) + (", ..." if len(numbers) > 6 else "")
+    return f"[{shown}] ({len(numbers)} rows)"
+
+
+def _has_data_rows(path: Path) -> bool:
+    try:
+        with open(path, "rb") as f:
+            return sum(1 for line in f if line.strip()) > 1
+    except FileNotFoundError:
+        return False
 
 
 def _npy_bytes(array: np.ndarray) -> bytes:

@@ -15,8 +15,9 @@ skips finished runs and resumes interrupted ones. Also ``python -m
 sdbc_evolution.study``.
 
 Exit status: 0 done, 1 some run failed, 2 bad input (preset, task, directory,
-scheduler), 130 interrupted by Ctrl-C or SIGTERM (run the same command again to
-resume).
+scheduler), 3 some runs were being written by another process and were left to it
+(run the same command again once it ends), 130 interrupted by Ctrl-C or SIGTERM
+(run the same command again to resume).
 """
 
 from __future__ import annotations
@@ -27,8 +28,14 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sdbc_evolution.run.evaluators import SchedulerUnreachable, add_evaluator_arguments
+from sdbc_evolution.run.evaluators import (
+    SchedulerLost,
+    SchedulerUnreachable,
+    add_evaluator_arguments,
+    quiet_dask_logging,
+)
 from sdbc_evolution.run.stopping import stoppable
+from sdbc_evolution.run.system_errors import one_line_errors
 from sdbc_evolution.study.presets import (
     PRESET_NAMES,
     PresetError,
@@ -38,6 +45,8 @@ from sdbc_evolution.study.presets import (
 
 RESULTS_ROOT = Path("results")
 """Where studies go when ``--out`` is not given: ``results/study-<preset>``."""
+BUSY_EXIT = 3
+"""Exit status of a session that left runs to another process's writer."""
 COMMANDS = ("run", "analyse", "all", "measure")
 """Subcommands; ``all`` (run, then analyse) when none is given."""
 
@@ -152,9 +161,13 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
             connect_timeout=args.connect_timeout,
         )
         shard = Shard.parse(args.shard) if args.shard is not None else None
+        if args.scheduler is not None:
+            quiet_dask_logging()
     except (PresetError, ValueError) as error:
         return _error(str(error)), None
     out = args.out if args.out is not None else RESULTS_ROOT / f"study-{preset.name}"
+    if out.exists() and not out.is_dir():
+        return _error(f"--out {out}: a file, not a directory"), None
     try:
         outcome = run_study(
             preset,
@@ -167,6 +180,8 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
         )
     except (StudyError, SchedulerUnreachable, ValueError) as error:
         return _error(str(error)), None
+    except SchedulerLost as error:
+        return _error(f"{error}; run the same command again to continue"), None
     if outcome.interrupted:
         print(
             f"\ninterrupted; resume with the same command "
@@ -177,7 +192,16 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
     for task, seconds in outcome.task_seconds.items():
         print(f"{task}: {seconds / 60:.1f} min in this session")
     print(f"study: {out.resolve()}")
-    return (1 if outcome.failed else 0), out
+    if outcome.failed:
+        return 1, out
+    if outcome.busy:
+        print(
+            f"sdbc-study: {len(outcome.busy)} run(s) were being written by another "
+            "process and were left to it; run the same command again once it ends",
+            file=sys.stderr,
+        )
+        return BUSY_EXIT, out
+    return 0, out
 
 
 def _analyse(
@@ -226,6 +250,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not argv or argv[0] not in (*COMMANDS, "-h", "--help"):
         argv = ["all", *argv]
     args = build_parser().parse_args(argv)
+    return one_line_errors("sdbc-study", lambda: _main(args, argv))
+
+
+def _main(args: argparse.Namespace, argv: list[str]) -> int:
     if args.command == "analyse":
         return _analyse(args.study, args.out, argv, args.from_digest)
     if args.command == "measure":

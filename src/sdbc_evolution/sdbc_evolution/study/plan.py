@@ -33,7 +33,10 @@ from sdbc_evolution.run.config import (
     Treatment,
     load_config,
 )
-from sdbc_evolution.run.results import CONFIG_FILE, ResultsDirectory
+from sdbc_evolution.run.evaluators import TaskInfo
+from sdbc_evolution.run.experiment import task_spec
+from sdbc_evolution.run.lock import RunBusy, RunLock
+from sdbc_evolution.run.results import CONFIG_FILE, ResultsDirectory, RunDamaged
 from sdbc_evolution.study.presets import StudyPreset
 
 STUDY_FILE = "study.yaml"
@@ -178,7 +181,11 @@ class RunProgress(str, Enum):
     FINISHED = "finished"
     """Checkpoint at the last generation: the run is skipped."""
     BROKEN = "broken"
-    """Results without a usable checkpoint: moved aside, the run starts again."""
+    """Results without a usable checkpoint, or damaged outputs the checkpoint
+    vouches for: moved aside, the run starts again."""
+    BUSY = "busy"
+    """Another process holds the run's lock (another session writes it): left
+    to it."""
 
 
 @dataclass(frozen=True)
@@ -190,9 +197,24 @@ class RunStatus:
     detail: str = ""
 
 
+_NAMES: dict[tuple[str, str], tuple[str, ...]] = {}
+
+
+def _sdbc_names(config: ExperimentConfig) -> tuple[str, ...]:
+    spec = task_spec(config)
+    if spec.key() not in _NAMES:
+        _NAMES[spec.key()] = TaskInfo.of(spec).sdbc_names
+    return _NAMES[spec.key()]
+
+
 def run_status(spec: RunSpec) -> RunStatus:
-    """Reads (never changes) the run directory of ``spec``."""
-    results = ResultsDirectory(spec.path, ())
+    """Reads (never changes) the run directory of ``spec``: its checkpoint, and
+    every output the checkpoint vouches for (see ``ResultsDirectory.verify``).
+
+    It does not look at the run's lock: a caller that acts on the answer holds
+    the lock while it reads and acts (see :func:`locked_status`).
+    """
+    results = ResultsDirectory(spec.path, _sdbc_names(spec.config))
     if not spec.path.exists() or not results.holds_a_run():
         return RunStatus(RunProgress.NEW)
     try:
@@ -208,9 +230,29 @@ def run_status(spec: RunSpec) -> RunStatus:
         checkpoint = load_checkpoint(results.checkpoint_path, spec.config.to_dict())
     except CheckpointError as error:
         return RunStatus(RunProgress.BROKEN, detail=str(error))
+    try:
+        results.verify(checkpoint.generation, spec.config.ga.population_size)
+    except RunDamaged as error:
+        return RunStatus(RunProgress.BROKEN, detail=str(error))
     if checkpoint.generation >= spec.generations:
         return RunStatus(RunProgress.FINISHED, checkpoint.generation)
     return RunStatus(RunProgress.PARTIAL, checkpoint.generation)
+
+
+def locked_status(spec: RunSpec) -> tuple[RunLock, RunStatus]:
+    """The run's status read under its lock, and the lock, held unless the state
+    is BUSY or NEW with no directory yet (the caller releases it)."""
+    lock = RunLock(spec.path)
+    if spec.path.is_dir():
+        try:
+            lock.acquire()
+        except RunBusy as busy:
+            return lock, RunStatus(RunProgress.BUSY, detail=str(busy))
+    try:
+        return lock, run_status(spec)
+    except BaseException:
+        lock.release()
+        raise
 
 
 def discard(spec: RunSpec, root: str | Path) -> Path:

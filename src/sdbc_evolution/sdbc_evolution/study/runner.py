@@ -3,8 +3,14 @@
 Runs go task by task (so a task's wall time is measured on its own). Finished runs
 are skipped, interrupted runs resume from their checkpoint (the experiment runner's
 bit-identical ``--resume``), and a run directory that holds results but no usable
-checkpoint is moved under ``STUDY/.discarded`` and started again; each of these is
-said by name.
+checkpoint, or whose checkpoint vouches for an output that is missing or damaged,
+is moved under ``STUDY/.discarded`` and started again; each of these is said by
+name.
+
+A run's status is read under its lock (``sdbc_evolution.run.lock``), and the run is
+written under it. A run another session holds (two sessions on one study, or a
+run someone resumes by hand) is busy: left to its writer, named, and the session
+ends with :attr:`StudyOutcome.busy` set. Shards lock only their own runs.
 
 Where the work goes:
 
@@ -43,9 +49,13 @@ from sdbc_evolution.run.evaluators import (
     DEFAULT_CONNECT_TIMEOUT,
     Evaluator,
     LocalEvaluator,
+    SchedulerLost,
+    TaskInfo,
     make_evaluator,
 )
-from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
+from sdbc_evolution.run.footprint import check_footprint
+from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
 from sdbc_evolution.run.stopping import STOP_SIGNALS
@@ -54,8 +64,10 @@ from sdbc_evolution.study.plan import (
     STUDY_FILE,
     RunProgress,
     RunSpec,
+    RunStatus,
     Shard,
     discard,
+    locked_status,
     run_status,
     study_plan,
 )
@@ -110,6 +122,7 @@ class RunOutcome:
     finished: bool
     error: str = ""
     interrupted: bool = False
+    busy: str = ""
 
 
 @dataclass
@@ -121,6 +134,7 @@ class StudyOutcome:
         ran: Runs this session worked on.
         discarded: (run name, where it went, why) of runs moved aside.
         failed: Runs that stopped on an error.
+        busy: Runs another process was writing, left to it.
         interrupted: True if the session was stopped (Ctrl-C).
         task_seconds: Wall time per task in this session.
     """
@@ -129,6 +143,7 @@ class StudyOutcome:
     ran: list[RunOutcome] = field(default_factory=list)
     discarded: list[tuple[str, Path, str]] = field(default_factory=list)
     failed: list[RunOutcome] = field(default_factory=list)
+    busy: list[str] = field(default_factory=list)
     interrupted: bool = False
     task_seconds: dict[str, float] = field(default_factory=dict)
 
@@ -193,6 +208,9 @@ def run_study(
                 f"shard {shard} holds no runs: the study has {runs}, so at most "
                 f"{runs} shards"
             )
+    for spec in {spec.task: spec for spec in plan}.values():
+        # Runs of a task differ in seed and treatment only: one check per task.
+        check_footprint(spec.config, TaskInfo.of(task_spec(spec.config)))
     if execution.scheduler is not None:
         # An unreachable scheduler fails here, before anything is written.
         make_evaluator(
@@ -204,15 +222,24 @@ def run_study(
     outcome = StudyOutcome()
     todo: list[tuple[RunSpec, int]] = []
     for spec in plan:
-        status = run_status(spec)
-        if status.state is RunProgress.FINISHED:
-            outcome.skipped.append(spec.name)
-            continue
-        if status.state is RunProgress.BROKEN:
-            where = discard(spec, root)
-            outcome.discarded.append((spec.name, where, status.detail))
-            say(f"{spec.name}: cannot resume ({status.detail}); moved to {where}")
-            status = run_status(spec)
+        lock, status = locked_status(spec)
+        try:
+            if status.state is RunProgress.BUSY:
+                outcome.busy.append(spec.name)
+                say(f"{spec.name}: left alone: {status.detail}")
+                continue
+            if status.state is RunProgress.FINISHED:
+                outcome.skipped.append(spec.name)
+                continue
+            if status.state is RunProgress.BROKEN:
+                where = discard(spec, root)
+                outcome.discarded.append((spec.name, where, status.detail))
+                say(f"{spec.name}: cannot resume ({status.detail}); moved to {where}")
+                status = RunStatus(RunProgress.NEW)
+        finally:
+            # Released for the process that runs it, which locks it again and
+            # reads the status anew (another session may finish it meanwhile).
+            lock.release()
         todo.append((spec, status.generations_done))
     if outcome.skipped:
         say(f"{len(outcome.skipped)} of {len(plan)} runs already finished: skipped")
@@ -264,8 +291,12 @@ def run_study(
                         "shard": str(shard) if shard is not None else None,
                     },
                 )
-            outcome.ran.extend(results)
             for result in results:
+                if result.busy:
+                    outcome.busy.append(result.name)
+                    say(f"{result.name}: left alone: {result.busy}")
+                    continue
+                outcome.ran.append(result)
                 if result.error:
                     outcome.failed.append(result)
                     say(f"{result.name}: failed:\n{result.error}")
@@ -344,26 +375,50 @@ def execute_run(
     on_generation: Callable[[int], None],
     execution_note: dict[str, Any],
 ) -> RunOutcome:
-    """Creates or resumes one run and takes it to its last generation.
+    """Creates or resumes one run and takes it to its last generation, under the
+    run's lock, which it takes before reading the run's status.
 
-    A Ctrl-C stops it between or inside a generation (the checkpoint is atomic, so
-    the run resumes where it stopped) and is reported as ``interrupted``.
+    A run another process holds is reported ``busy`` and left alone; one found
+    finished (by another session since the study looked) is reported finished
+    and left as it is. A Ctrl-C stops it between or inside a generation (the
+    checkpoint is atomic, so the run resumes where it stopped) and is reported as
+    ``interrupted``.
     """
-    if run_status(spec).state is RunProgress.PARTIAL:
-        experiment = Experiment.resume(spec.config, spec.path, evaluator)
-    else:
-        experiment = Experiment.create(spec.config, spec.path, evaluator)
+    lock, status = locked_status(spec)
+    if status.state is RunProgress.NEW and not lock.held:
+        # No directory yet: make it locked, then look again under the lock.
+        try:
+            lock.acquire()
+        except RunBusy as busy:
+            return RunOutcome(spec.name, 0, finished=False, busy=str(busy))
+        status = run_status(spec)
+    if status.state is RunProgress.BUSY:
+        return RunOutcome(spec.name, 0, finished=False, busy=status.detail)
+    try:
+        if status.state is RunProgress.FINISHED:
+            lock.release()
+            return RunOutcome(spec.name, status.generations_done, finished=True)
+        if status.state is RunProgress.PARTIAL:
+            experiment = Experiment.resume(spec.config, spec.path, evaluator, lock=lock)
+        elif status.state is RunProgress.NEW:
+            experiment = Experiment.create(spec.config, spec.path, evaluator, lock=lock)
+        else:
+            raise ExperimentError(f"{spec.path} was damaged meanwhile: {status.detail}")
+    except BaseException:
+        lock.release()
+        raise
     first = experiment.state.generation
     started = time.time()
     outcome = RunOutcome(spec.name, first, finished=False)
-    try:
-        experiment.run(lambda record: on_generation(record.generation + 1))
-        outcome.finished = True
-    except KeyboardInterrupt:
-        outcome.interrupted = True
-    finally:
-        outcome.generations_done = experiment.state.generation
-        _note_execution(spec.path, first, outcome, started, execution_note)
+    with experiment:
+        try:
+            experiment.run(lambda record: on_generation(record.generation + 1))
+            outcome.finished = True
+        except KeyboardInterrupt:
+            outcome.interrupted = True
+        finally:
+            outcome.generations_done = experiment.state.generation
+            _note_execution(spec.path, first, outcome, started, execution_note)
     return outcome
 
 
@@ -419,6 +474,8 @@ def _run_one_by_one(
                     lambda g, s=spec: progress.generation(s.name, g, s.generations),
                     note,
                 )
+            except SchedulerLost:
+                raise  # every run after this one would fail the same way
             except Exception:
                 result = RunOutcome(spec.name, done, False, traceback.format_exc())
         progress.ended(spec.name, result.finished)

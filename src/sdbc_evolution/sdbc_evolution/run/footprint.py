@@ -1,0 +1,102 @@
+"""How much memory a run needs at once, checked before anything is written.
+
+A generation evaluates its N x T trials at once (split over the workers, but alive
+together), so the run's peak memory grows with N x T. A population of two million
+would otherwise be found out by a ``MemoryError`` (or the kernel's OOM killer)
+after the run directory was made; :func:`check_footprint` refuses it up front,
+with the estimate and what the machine has available.
+
+The estimate is deliberately simple and on the high side:
+
+- ``TRIAL_BYTES`` per trial simulated at once: the engine's and the SDBC
+  extractor's per-trial state (bodies in pymunk, sensor and network arrays,
+  feature accumulators). Measured as the growth of peak RSS from a batch of 200
+  trials to one of 4000, on the real engine: 26.9 KB per trial for gate escape,
+  14.5 KB for resource sharing, 17.8 KB for predator-prey; rounded up.
+- the GA's arrays: the population and its offspring (N x W float64, a few times),
+  the seeds and per-trial fitness (N x T), characterisations and SDBC vectors
+  (N x (C + D), a few times), and the novelty archive.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+from sdbc_evolution.run.config import ExperimentConfig
+from sdbc_evolution.run.evaluators import TaskInfo
+
+TRIAL_BYTES = 32 * 1024
+"""Memory per trial simulated at once (measured at most 26.9 KB; see above)."""
+COPIES = 4
+"""Copies of each per-individual array a generation holds at its peak (the
+evaluation's, the scores', the outputs' and the next population's)."""
+GIB = 2.0**30
+
+
+class FootprintError(ValueError):
+    """A run that cannot fit in this machine's memory; the message says how much
+    it needs."""
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """A run's estimated peak memory.
+
+    Attributes:
+        trials: Bytes of the trials simulated at once.
+        arrays: Bytes of the GA's per-individual arrays and the archive.
+    """
+
+    trials: int
+    arrays: int
+
+    @property
+    def total(self) -> int:
+        return self.trials + self.arrays
+
+
+def run_footprint(config: ExperimentConfig, info: TaskInfo) -> Footprint:
+    """The peak memory of a generation of ``config`` on the task ``info``."""
+    n, t = config.ga.population_size, config.evaluation.trials
+    w, c, d = info.genome_length, info.characterisation_size, len(info.sdbc_names)
+    per_individual = 8 * (w + 2 * t + c + d)
+    archive = config.novelty.archive_size * 8 * (max(c, d) + 2)
+    return Footprint(
+        trials=n * t * TRIAL_BYTES, arrays=COPIES * n * per_individual + archive
+    )
+
+
+def available_memory() -> int | None:
+    """Bytes the kernel says can be had without swapping (``MemAvailable``), or
+    None where it does not say."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError):
+        return None
+
+
+def check_footprint(config: ExperimentConfig, info: TaskInfo) -> None:
+    """Refuses a run whose estimated peak memory exceeds what is available.
+
+    Raises:
+        FootprintError: Naming the population, the trials, the estimate and the
+            memory available.
+    """
+    need = run_footprint(config, info).total
+    have = available_memory()
+    if have is None or need <= have:
+        return
+    raise FootprintError(
+        f"ga.population_size {config.ga.population_size} x evaluation.trials "
+        f"{config.evaluation.trials} needs about {need / GIB:.1f} GiB of memory "
+        f"at once, only {have / GIB:.1f} GiB available: choose a smaller "
+        "population or fewer trials"
+    )

@@ -1,0 +1,169 @@
+"""One writer per run directory: the lock, and what a second writer is told."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from evolution_helpers import TINY_RUN_YAML, TOY_INFO, ToyEvaluator
+from sdbc_evolution.run.config import config_from_dict
+from sdbc_evolution.run.experiment import Experiment
+from sdbc_evolution.run.lock import LOCK_FILE, RunBusy, RunLock
+from sdbc_evolution.run.results import read_generations
+
+HOLD = """\
+import sys, time
+from sdbc_evolution.run.lock import RunLock
+lock = RunLock(sys.argv[1]).acquire()
+print("held", flush=True)
+time.sleep(600)
+"""
+
+
+def toy_config(generations: int = 3):
+    return config_from_dict(
+        {
+            "task": "toy",
+            "treatment": "ns-ts",
+            "generations": generations,
+            "ga": {"population_size": 6, "tournament_size": 2, "elites": 1},
+            "novelty": {"k": 3},
+            "evaluation": {"trials": 2},
+        }
+    )
+
+
+def wait_for(condition, what: str, seconds: float = 120) -> None:
+    deadline = time.monotonic() + seconds
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"gave up waiting for {what}")
+        time.sleep(0.05)
+
+
+def test_a_second_lock_is_refused_naming_the_holder(tmp_path: Path) -> None:
+    first = RunLock(tmp_path / "run").acquire()
+    with pytest.raises(RunBusy) as busy:
+        RunLock(tmp_path / "run").acquire()
+    assert f"(pid {os.getpid()} on {socket.gethostname()})" in str(busy.value)
+    first.release()
+    assert (tmp_path / "run" / LOCK_FILE).read_text() == ""
+    with RunLock(tmp_path / "run"):
+        pass
+
+
+def test_the_lock_goes_with_its_holder_even_on_sigkill(tmp_path: Path) -> None:
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(tmp_path)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+        with pytest.raises(RunBusy, match=f"pid {holder.pid} on"):
+            RunLock(tmp_path).acquire()
+    finally:
+        holder.send_signal(signal.SIGKILL)
+        holder.wait()
+    with RunLock(tmp_path):
+        pass
+
+
+def test_an_experiment_holds_its_directory_until_closed(tmp_path: Path) -> None:
+    experiment = Experiment.create(toy_config(), tmp_path, ToyEvaluator(), TOY_INFO)
+    with pytest.raises(RunBusy, match="being written by another process"):
+        Experiment.resume(toy_config(), tmp_path, ToyEvaluator(), TOY_INFO)
+    experiment.step()
+    experiment.close()
+    with Experiment.resume(toy_config(), tmp_path, ToyEvaluator(), TOY_INFO) as again:
+        again.run()
+    assert read_generations(tmp_path)["generation"].tolist() == [0, 1, 2]
+
+
+def test_a_generation_whose_rows_do_not_match_is_refused(tmp_path: Path) -> None:
+    # The second guard: a row written behind the lock's back (a foreign writer).
+    with Experiment.create(toy_config(), tmp_path, ToyEvaluator(), TOY_INFO) as run:
+        run.step()
+        with open(tmp_path / "generations.csv") as f:
+            rows = f.readlines()
+        with open(tmp_path / "generations.csv", "a") as f:
+            f.write(rows[-1])
+        with pytest.raises(
+            RuntimeError, match="holds 2 generations before generation 1"
+        ):
+            run.step()
+
+
+def evolve(out: Path, *args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sdbc_evolution.run.cli",
+            "--resume",
+            "--out",
+            str(out),
+            "--workers",
+            "1",
+            "--quiet",
+            "--no-gif",
+            *args,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def test_two_resumes_at_once_on_one_run_one_is_refused(tmp_path: Path) -> None:
+    from sdbc_evolution.run.cli import main
+
+    config = tmp_path / "tiny.yaml"
+    config.write_text(TINY_RUN_YAML)
+    out = tmp_path / "run"
+    assert (
+        main(
+            [
+                "--config",
+                str(config),
+                "--out",
+                str(out),
+                "--quiet",
+                "--no-gif",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    # The first resume cannot finish before it is stopped: the second one surely
+    # starts while the first writes.
+    first = evolve(out, "--generations", "100000")
+    try:
+        wait_for(
+            lambda: len(read_generations(out)["generation"]) >= 3,
+            "the first resume's generations",
+        )
+        second = evolve(out, "--generations", "100000")
+        _, err = second.communicate(timeout=300)
+        assert second.returncode == 2
+        assert err.strip() == (
+            f"sdbc-evolve: error: {out} is being written by another process "
+            f"(pid {first.pid} on {socket.gethostname()}); wait for it to end, or "
+            "choose another output directory"
+        )
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.communicate(timeout=300)
+    assert first.returncode == 130
+    done = read_generations(out)["generation"].tolist()
+    assert done == list(range(len(done)))  # every generation once, in order
+    # and the run goes on from where the first stopped
+    again = evolve(out, "--generations", str(len(done) + 1))
+    again.communicate(timeout=300)
+    assert again.returncode == 0
+    assert read_generations(out)["generation"].tolist() == list(range(len(done) + 1))
