@@ -8,7 +8,13 @@ them the same way, from this module:
 - with ``forkserver``, so that a child starts clean whatever threads its parent
   has (a Dask client, a progress bar, rclpy's executor);
 - one simulation per core, so each child limits BLAS and OpenMP to one thread
-  (more would only oversubscribe the cores).
+  (more would only oversubscribe the cores);
+- each child ends when the process that made it (its owner) ends, however it
+  ends, SIGKILL included (:func:`watch_owner`). The kernel's parent-death signal
+  cannot do this here: a forkserver child's parent is the fork server, which
+  stays up as long as any child holds its end of the server's pipe, and every
+  child does. So a child watches its owner through a pidfd and exits when the
+  owner is gone; the fork server, left without clients, exits too.
 
 The node processes of a live graph are a different matter (a supervised command
 line each); :mod:`sdbc_evolution.graph.processes` starts those.
@@ -17,6 +23,9 @@ line each); :mod:`sdbc_evolution.graph.processes` starts those.
 from __future__ import annotations
 
 import os
+import select
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
@@ -41,15 +50,67 @@ def limit_threads() -> None:
     threadpool_limits(1)
 
 
+ORPHAN_EXIT = 128 + 9
+"""Exit status of a child whose owner is gone (as if killed by SIGKILL with it)."""
+OWNER_POLL_SECONDS = 1.0
+"""Where pidfds are missing: how often a child looks whether its owner lives."""
+
+
+def watch_owner(owner: int) -> None:
+    """Ends this process (at once, with :data:`ORPHAN_EXIT`) when the process
+    ``owner`` ends; a daemon thread waits for it on a pidfd. A run's checkpoint
+    is atomic, so whatever the child was doing is redone on resume."""
+    try:
+        fd = os.pidfd_open(owner)
+    except ProcessLookupError:
+        os._exit(ORPHAN_EXIT)  # gone before we looked
+    except (AttributeError, OSError):
+        fd = None  # no pidfds (not Linux >= 5.3): poll instead
+
+    def wait() -> None:
+        if fd is not None:
+            select.select([fd], [], [])  # readable once the owner has exited
+        else:
+            while _alive(owner):
+                time.sleep(OWNER_POLL_SECONDS)
+        os._exit(ORPHAN_EXIT)
+
+    threading.Thread(target=wait, name="watch-owner", daemon=True).start()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _start_worker(owner: int) -> None:
+    watch_owner(owner)
+    limit_threads()
+
+
+def _owned(owner: int, target: Callable[..., None], *args: Any) -> None:
+    watch_owner(owner)
+    target(*args)
+
+
 def _context() -> ForkServerContext:
     # forkserver: see the module docstring.
     return get_context("forkserver")
 
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:
-    """A pool of ``workers`` processes, each limited to one thread."""
+    """A pool of ``workers`` processes, each limited to one thread and ending
+    with this process."""
     return ProcessPoolExecutor(
-        max_workers=workers, mp_context=_context(), initializer=limit_threads
+        max_workers=workers,
+        mp_context=_context(),
+        initializer=_start_worker,
+        initargs=(os.getpid(),),
     )
 
 
@@ -61,8 +122,11 @@ def message_queue() -> Queue[Any]:
 def start_process(
     target: Callable[..., None], args: Sequence[Any], name: str
 ) -> BaseProcess:
-    """Starts ``target(*args)`` in a process of its own, named ``name``; the
-    target limits its threads itself (:func:`limit_threads`) where it computes."""
-    process = _context().Process(target=target, args=tuple(args), name=name)
+    """Starts ``target(*args)`` in a process of its own, named ``name``, that
+    ends with this process; the target limits its threads itself
+    (:func:`limit_threads`) where it computes."""
+    process = _context().Process(
+        target=_owned, args=(os.getpid(), target, *args), name=name
+    )
     process.start()
     return process
