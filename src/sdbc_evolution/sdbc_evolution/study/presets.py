@@ -49,8 +49,9 @@ from sdbc_evolution.study.paper import PAPER_TASKS
 
 PRESET_DIR = Path("configs") / "study"
 """Where the named presets live, relative to the repository root."""
-PRESET_NAMES = ("smoke", "local", "paper")
-"""The presets shipped with the project."""
+PRESET_NAMES = ("smoke", "local", "paper", "local_new_tasks")
+"""The presets shipped with the project (``local_new_tasks``: the tasks beyond the
+paper at the ``local`` scale)."""
 PAPER_RUNS = 20
 """Runs per treatment and task in the paper."""
 STUDY_KEYS = ("task", "treatment", "seed", "generations", "task_config")
