@@ -139,3 +139,35 @@ def test_velocity_actuation_moves_a_robot_in_the_step_it_is_commanded(
 def test_actuation_must_be_known() -> None:
     with pytest.raises(ValueError, match="actuation must be one of velocity, force"):
         PhysicsSettings(actuation="impulse")  # type: ignore[arg-type]
+
+
+def test_pymunk_buffers_are_reused_batch_after_batch(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # pymunk 7.3.1's Buffer never frees its C arrays, so a new one per Space and
+    # batch grew memory without bound (bench/memory.py measures it): after a
+    # warm-up, batches make no new Buffers.
+    import gc
+
+    import pymunk.batch as pb
+    from sdbc_sim.engine import run_batch
+
+    made: list[int] = []
+    real = pb.Buffer
+
+    class CountedBuffer(real):
+        def __init__(self) -> None:
+            made.append(1)
+            super().__init__()
+
+    monkeypatch.setattr(pb, "Buffer", CountedBuffer)
+    task = make_task("gate_escape", max_steps=10)
+    rng = np.random.default_rng(0)
+    genomes = rng.uniform(-1, 1, (6, task.genome_length))
+    counts = []
+    for _ in range(8):
+        seeds = rng.integers(0, 2**62, (6, 2), dtype=np.int64)
+        run_batch(task, genomes, seeds)
+        gc.collect()
+        counts.append(len(made))
+    assert counts[2:] == [counts[2]] * 6, counts

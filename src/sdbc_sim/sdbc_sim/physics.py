@@ -45,6 +45,7 @@ from __future__ import annotations
 import atexit
 import gc
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Literal
 
@@ -340,8 +341,30 @@ def project_apart(
     return pos
 
 
+_FREE_BUFFERS: dict[str, list[pb.Buffer]] = {"read": [], "write": []}
+"""pymunk Buffers kept for reuse, by kind. pymunk 7.3.1's ``Buffer`` never frees
+its C arrays (docs/upstream/pymunk-batch-buffer-leak.md): a new one per Space and
+batch leaked 200-600 bytes per trial. Read buffers are grown by pymunk; write
+buffers point into numpy arrays (``set_float_buf``), so the kinds never mix."""
+
+
+def _buffer(kind: str) -> pb.Buffer:
+    """A Buffer of ``kind`` ("read" or "write") from the free list, or a new one."""
+    free = _FREE_BUFFERS[kind]
+    return free.pop() if free else pb.Buffer()
+
+
+def _give_back(buffers: list[tuple[str, pb.Buffer]]) -> None:
+    """Returns a collected Space's Buffers to the free lists."""
+    for kind, buffer in buffers:
+        if kind == "read":
+            buffer.clear()
+        _FREE_BUFFERS[kind].append(buffer)
+
+
 class _Space:
-    """One pymunk Space and the bookkeeping of its trials."""
+    """One pymunk Space and the bookkeeping of its trials. Its pymunk Buffers
+    come from free lists and go back when the Space is collected."""
 
     def __init__(self, trial_ids: list[int]) -> None:
         self.space = pymunk.Space()
@@ -349,13 +372,19 @@ class _Space:
         self.bodies: dict[int, list[pymunk.Body]] = {}
         self.shapes: dict[int, list[pymunk.Circle]] = {}
         self.perm: np.ndarray | None = None
-        self.read_buf = pb.Buffer()
+        self.read_buf = _buffer("read")
         # Write rows without and with the position (after a projection).
-        self.write_bufs = (pb.Buffer(), pb.Buffer())
+        self.write_bufs = (_buffer("write"), _buffer("write"))
         self.writes = (np.zeros((0, WRITE_WIDTH)), np.zeros((0, WRITE_WIDTH)))
         self.moved = False
         self.n_extra = 0
-        self.contact_buf = pb.Buffer()
+        self.contact_buf = _buffer("read")
+        weakref.finalize(
+            self,
+            _give_back,
+            [("read", self.read_buf), ("read", self.contact_buf)]
+            + [("write", buffer) for buffer in self.write_bufs],
+        )
         self.sorted_ids = np.zeros(0, dtype=np.uintp)
         self.sorted_rows = np.zeros(0, dtype=np.intp)
 
