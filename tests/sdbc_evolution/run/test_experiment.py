@@ -337,3 +337,18 @@ def test_a_finished_run_extends_when_generations_grow(tmp_path: Path) -> None:
         Experiment.resume(
             small_config(generations=2), tmp_path, ToyEvaluator(), TOY_INFO
         )
+
+
+def test_an_individuals_file_holds_the_documented_bytes(tmp_path: Path) -> None:
+    # results.py's disk figures rest on N (28 + 4T + 4C + 4D) bytes of arrays per
+    # individuals file before compression.
+    from sdbc_evolution.run.results import INDIVIDUALS_ARRAYS
+
+    config = small_config(generations=1)
+    run(config, tmp_path)
+    n, t = config.ga.population_size, config.evaluation.trials
+    c, d = TOY_INFO.characterisation_size, len(TOY_INFO.sdbc_names)
+    with np.load(tmp_path / "individuals" / "gen_00000.npz") as data:
+        assert sorted(data.files) == sorted((*INDIVIDUALS_ARRAYS, "sdbc_names"))
+        arrays = sum(data[name].nbytes for name in INDIVIDUALS_ARRAYS)
+    assert arrays == n * (28 + 4 * t + 4 * c + 4 * d)
