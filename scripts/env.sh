@@ -29,8 +29,23 @@ export LD_LIBRARY_PATH="$_sdbc_ld${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 export _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
 export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
 
-# DDS discovery never leaves the machine unless the user says otherwise.
-export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# DDS stays on this machine unless the user says otherwise. Fast DDS reads its
+# profile from FASTRTPS_DEFAULT_PROFILES_FILE (2.14, Jazzy's) or, in newer versions,
+# FASTDDS_DEFAULT_PROFILES_FILE: unless either is set (an empty value included),
+# both point at scripts/fastdds_localhost.xml, which puts every socket on loopback.
+# ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST alone does not: rmw_fastrtps then adds a
+# UDP transport of its own, bound to 0.0.0.0 and the external interface (measured
+# with /proc/net; tests/test_sockets.py). So with the profile the range defaults to
+# SYSTEM_DEFAULT (the profile decides); without it, to LOCALHOST.
+# Multi-machine graphs: export FASTRTPS_DEFAULT_PROFILES_FILE= (empty) before
+# sourcing this, and ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (README, "Reliability").
+if [ -z "${FASTRTPS_DEFAULT_PROFILES_FILE+set}" ] && [ -z "${FASTDDS_DEFAULT_PROFILES_FILE+set}" ]; then
+  export FASTRTPS_DEFAULT_PROFILES_FILE="$_sdbc_root/scripts/fastdds_localhost.xml"
+  export FASTDDS_DEFAULT_PROFILES_FILE="$FASTRTPS_DEFAULT_PROFILES_FILE"
+  export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-SYSTEM_DEFAULT}"
+else
+  export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+fi
 export ROS_HOME="${ROS_HOME:-$_sdbc_root/.ros}"
 export MPLBACKEND="${MPLBACKEND:-Agg}"
 

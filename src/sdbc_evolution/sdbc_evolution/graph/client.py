@@ -350,7 +350,7 @@ class GraphClient:
                 task state stream was incomplete in every attempt.
         """
         problem = ""
-        for _ in range(TRIAL_ATTEMPTS):
+        for attempt in range(1, TRIAL_ATTEMPTS + 1):
             trial_id = self._next_trial_id
             self._next_trial_id += 1
             stream = _TrialStream(MessageSdbcExtractor(self.description))
@@ -385,6 +385,11 @@ class GraphClient:
                 )
             problem = stream.error or (
                 f"{stream.steps} task state messages for {answer.length} steps"
+            )
+            # Said, not only retried: a malformed message points at a publisher.
+            self.node.get_logger().warning(
+                f"trial {trial_id} (seed {seed}): bad task state stream ({problem}); "
+                f"attempt {attempt} of {TRIAL_ATTEMPTS}"
             )
         raise TrialFailed(
             f"trial seed {seed}: the task state stream was incomplete in "
