@@ -145,3 +145,28 @@ def test_a_population_too_big_for_memory_is_refused_before_any_file(
     assert not out.exists()
     # A population that fits runs.
     assert run("--config", str(tiny), "--out", str(out)) == 0
+
+
+@pytest.mark.parametrize("population", ["3", "4", "5"])
+def test_a_population_too_small_for_the_defaults_names_the_population(
+    tmp_path: Path, population: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert run("--task", "gate_escape", "--out", str(tmp_path / "r"),
+               "--population", population) == 2  # fmt: skip
+    assert one_line(capsys) == (
+        f"sdbc-evolve: error: ga.population_size: {population} is too small: must "
+        "be at least 6 for tournament_size=5 and elites=5 (or set those lower)"
+    )
+
+
+def test_an_empty_configuration_file_is_an_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("")
+    assert run("--config", str(empty), "--out", str(tmp_path / "r")) == 2
+    assert one_line(capsys) == (
+        f"sdbc-evolve: error: {empty} is empty: give at least the task (e.g. "
+        "'task: gate_escape'), or leave --config out for the quick start"
+    )
+    assert not (tmp_path / "r").exists()

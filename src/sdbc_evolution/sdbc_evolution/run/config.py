@@ -91,15 +91,15 @@ class GaConfig:
     bounds is taken instead (ECJ's default)."""
 
     def __post_init__(self) -> None:
+        # Named as the population's problem: a population of 3 to 5 is too small
+        # for the default tournament and elites, which the user may not have set.
+        need = max(self.tournament_size, self.elites + 1)
         check(
-            self.tournament_size <= self.population_size,
-            "tournament_size",
-            f"must be in [1, population_size={self.population_size}]",
-        )
-        check(
-            self.elites < self.population_size,
-            "elites",
-            f"must be in [0, population_size={self.population_size})",
+            self.population_size >= need,
+            "population_size",
+            f"{self.population_size} is too small: must be at least {need} for "
+            f"tournament_size={self.tournament_size} and elites={self.elites} "
+            "(or set those lower)",
         )
         check(
             self.gene_min < self.gene_max,
@@ -278,6 +278,13 @@ def load_config(path: str | Path) -> ExperimentConfig:
         data = yaml.safe_load(text)
     except yaml.YAMLError as error:
         raise ConfigError(f"{path} is not valid YAML: {error}") from None
+    if data is None:
+        # Not every default: an empty file is more likely a mistake than a wish
+        # for a paper-scale run.
+        raise ConfigError(
+            f"{path} is empty: give at least the task (e.g. 'task: gate_escape'), "
+            "or leave --config out for the quick start"
+        )
     try:
         return config_from_dict(data)
     except ConfigError as error:
