@@ -143,3 +143,23 @@ def test_a_trial_is_the_same_alone_in_a_batch_in_any_space_and_process(
         start_separation=6.0,
         max_steps=150,
     )
+
+
+@pytest.mark.parametrize("name", ["aggregation", "foraging"])
+def test_sdbc_vector_alone_equals_it_in_a_batch(name: str) -> None:
+    """Groups of 8 or more entities (8 agents, 28 agent pairs; 15 items): the
+    SDBC's sums over slots run in one order whatever the batch (numpy's own
+    reduction summed a lone trial's contiguous slots pairwise, and the last bits
+    differed)."""
+    task = make_task(name, max_steps=100)
+    rng = np.random.default_rng(1)
+    genomes = rng.uniform(-1, 1, (3, task.genome_length))
+    seeds = rng.integers(0, 2**31, (3, 3))
+    batch = SdbcExtractor()
+    run_batch(task, genomes, seeds, [batch])
+    for g, t in [(0, 0), (2, 2)]:
+        alone = SdbcExtractor()
+        run_batch(task, genomes[g : g + 1], seeds[g : g + 1, t : t + 1], [alone])
+        np.testing.assert_array_equal(
+            alone.characterisations()[0], batch.characterisations()[3 * g + t]
+        )

@@ -178,6 +178,25 @@ def _shared(shapes: Shapes) -> bool:
     return (shapes.x if isinstance(shapes, Discs) else shapes.ax).shape[-1] == 1
 
 
+def _slot_sum(
+    a: np.ndarray, axes: tuple[int, ...], out: np.ndarray | None = None
+) -> np.ndarray:
+    """Sum over the consecutive slot ``axes`` of ``a``, one slot at a time in index
+    order. numpy's own reduction sums 8 or more contiguous values pairwise, and a
+    lone trial's slots are contiguous where a batch's are not, so a group of 8 or
+    more entities would give a trial different last bits alone and in a batch;
+    below 8 both orders are this one."""
+    first = axes[0]
+    shape = a.shape
+    rest = shape[first + len(axes) :]
+    rows = a.reshape(*shape[:first], -1, *rest)
+    total = out if out is not None else np.empty((*shape[:first], *rest), a.dtype)
+    np.copyto(total, np.take(rows, 0, axis=first), casting="unsafe")
+    for k in range(1, rows.shape[first]):
+        total += np.take(rows, k, axis=first)
+    return total
+
+
 def _zero_where(array: np.ndarray, mask: np.ndarray) -> None:
     """Sets ``array`` to 0 where the broadcast ``mask`` holds, in place.
 
@@ -349,7 +368,7 @@ class StepFeatures:
                 else:
                     p = presence(g)
                     out = ws.get(("size", g), p.shape[1:])
-                    sizes[g] = np.add.reduce(p, axis=0, dtype=np.float64, out=out)
+                    sizes[g] = _slot_sum(p.astype(np.float64), (0,), out)
             return sizes[g]
 
         def shape(g: int) -> Shapes:
@@ -371,9 +390,9 @@ class StepFeatures:
 
         def reduce_into(f: int, d: np.ndarray, axes: tuple[int, ...]) -> None:
             if d.shape[len(axes) :] == total.shape[1:]:
-                np.add.reduce(d, axis=axes, out=total[f])
+                _slot_sum(d, axes, total[f])
             else:
-                total[f] = np.add.reduce(d, axis=axes)
+                total[f] = _slot_sum(d, axes)
 
         constant = self._constant_counts
         for f, feature in enumerate(self.features):
@@ -394,9 +413,9 @@ class StepFeatures:
                         _zero_where(values, absence(g)[None])
                     rows = total[f : f + len(spec.attributes)]
                     if values.shape[2:] == rows.shape[1:]:
-                        np.add.reduce(values, axis=1, out=rows)
+                        _slot_sum(values, (1,), rows)
                     else:
-                        rows[...] = np.add.reduce(values, axis=1)
+                        rows[...] = _slot_sum(values, (1,))
                 if f not in constant:
                     count[f] = size(g)
             elif feature.kind is FeatureKind.DISPERSION:
