@@ -20,7 +20,7 @@ from sdbc_evolution.study.analysis import FIGURES_DIR, REPORT_FILE, TABLES_DIR
 from sdbc_evolution.study.cli import main
 from sdbc_evolution.study.plan import study_plan
 from sdbc_evolution.study.presets import load_preset
-from sdbc_evolution.study.relevance import TASK_SPECIFIC_FEATURES
+from sdbc_evolution.study.relevance import task_specific_features
 from sdbc_evolution.study.rundirs import load_study
 from sdbc_sim.tasks import make_task
 
@@ -116,7 +116,7 @@ def test_relevance_names_are_the_characterisation_dimensions(smoke: Path) -> Non
         assert [int(r["rank"]) for r in rows] == list(range(1, len(names) + 1))
         means = [float(r["mean_mi_bits"]) for r in rows]
         assert means == sorted(means, reverse=True)
-        matched = {n for ns in TASK_SPECIFIC_FEATURES[task].values() for n in ns}
+        matched = {n for ns in task_specific_features(task).values() for n in ns}
         assert {r["feature"] for r in rows if r["in_task_specific"] == "True"} == (
             matched
         )
@@ -231,8 +231,11 @@ def test_missing_and_truncated_runs_are_named_and_the_rest_analysed(
 
 
 def test_task_specific_features_name_real_dimensions() -> None:
-    for task, features in TASK_SPECIFIC_FEATURES.items():
-        names = set(dimension_names(make_task(task).description))
+    for task in TASKS:
+        built = make_task(task)
+        names = set(dimension_names(built.description))
+        features = task_specific_features(task)
+        assert set(features) == set(built.characterisation_names), task
         for feature, dimensions in features.items():
             assert set(dimensions) <= names, (task, feature)
 

@@ -18,6 +18,9 @@ with the same test:
   relevance is consistent over runs (agree when the median coefficient of variation
   SD / mean of our top features is under :data:`CONSISTENT_CV`).
 
+The claims apply to the paper's three tasks only (:mod:`sdbc_evolution.study.paper`):
+a study of any other task gets no claim.
+
 The exploration claims apply the first rule to per-run numbers of the maps
 (:mod:`sdbc_evolution.study.exploration`): uniformity and high-fitness share.
 """
@@ -32,6 +35,7 @@ import numpy as np
 
 from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.exploration import ExplorationMaps
+from sdbc_evolution.study.paper import is_paper_task, task_title
 from sdbc_evolution.study.quality import PairTest, mann_whitney
 from sdbc_evolution.study.relevance import RelevanceTable
 
@@ -47,12 +51,6 @@ FIT, NS_TS, NS_SD, NS_SD_PLUS = (
     Treatment.NS_SD,
     Treatment.NS_SD_PLUS,
 )
-TASK_TITLES = {
-    "gate_escape": "gate escape",
-    "resource_sharing": "resource sharing",
-    "predator_prey": "predator-prey pursuit",
-}
-"""How the report names the tasks."""
 LABELS = {FIT: "Fit", NS_TS: "NS-TS", NS_SD: "NS-SD", NS_SD_PLUS: "NS-SD+"}
 """How the report names the treatments (the paper's names)."""
 
@@ -192,8 +190,11 @@ def _find(tests: list[PairTest], a: Treatment, b: Treatment) -> PairTest | None:
 def quality_claims(
     task: str, tests: list[PairTest], alpha: float = ALPHA
 ) -> list[Claim]:
-    """The paper's claims on the quality of solutions that concern ``task``."""
-    title = TASK_TITLES.get(task, task)
+    """The paper's claims on the quality of solutions that concern ``task`` (none
+    for a task the paper did not run)."""
+    if not is_paper_task(task):
+        return []
+    title = task_title(task)
     claims = []
 
     def add(statement: str, paper: str, test: PairTest | None, rule) -> None:
@@ -259,7 +260,7 @@ def relevance_claims(task: str, table: RelevanceTable | None) -> list[Claim]:
     paper = PAPER_RELEVANCE.get(task)
     if table is None or paper is None:
         return []
-    title = TASK_TITLES.get(task, task)
+    title = task_title(task)
     m = len(paper)
     ours = table.top(m)
     shared = [f.name for f in paper if f.name in ours.names]
@@ -320,8 +321,11 @@ def _metric_test(
 
 
 def exploration_claims(maps: ExplorationMaps, alpha: float = ALPHA) -> list[Claim]:
-    """The paper's reading of its exploration maps, tested on ``maps.task``."""
-    title = TASK_TITLES.get(maps.task, maps.task)
+    """The paper's reading of its exploration maps, tested on ``maps.task`` (none
+    for a task the paper did not run)."""
+    if not is_paper_task(maps.task):
+        return []
+    title = task_title(maps.task)
     claims = []
 
     def add(statement: str, test: PairTest | None, what: str) -> None:

@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.config import Treatment
-from sdbc_evolution.study.claims import LABELS, TASK_TITLES
+from sdbc_evolution.study.claims import LABELS
 from sdbc_evolution.study.exploration import ExplorationMaps
+from sdbc_evolution.study.paper import task_title
 from sdbc_evolution.study.quality import Curves
 
 COLOURS = {
@@ -58,7 +59,7 @@ def plot_curves(curves: Curves, path: Path) -> Path:
     ax.set_xlabel("generation")
     source = "re-evaluated" if "reevaluated" in "".join(curves.sources) else "selected"
     ax.set_ylabel(f"best fitness ({source})")
-    ax.set_title(f"{TASK_TITLES.get(curves.task, curves.task)}: mean +- SE over runs")
+    ax.set_title(f"{task_title(curves.task)}: mean +- SE over runs")
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
@@ -87,7 +88,7 @@ def plot_bests(task: str, bests: dict[Treatment, np.ndarray], path: Path) -> Pat
             zorder=3,
         )
     ax.set_ylabel("best fitness of the run")
-    ax.set_title(TASK_TITLES.get(task, task))
+    ax.set_title(task_title(task))
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
@@ -143,7 +144,7 @@ def plot_exploration(maps: ExplorationMaps, path: Path) -> Path:
         bar = fig.colorbar(mappable, ax=axes[0, -1], shrink=0.8)
         bar.set_label(f"fitness, {maps.settings.fitness_percentile:g}th percentile")
     fig.suptitle(
-        f"{TASK_TITLES.get(maps.task, maps.task)}: behaviour-space exploration "
+        f"{task_title(maps.task)}: behaviour-space exploration "
         f"({rows} x {columns} SOM; red: high-fitness region)",
         fontsize=10,
     )

@@ -30,9 +30,17 @@ def paper_generations(task: str) -> int | None:
 
 
 def task_title(task: str) -> str:
-    """How a report names ``task``: the paper's words for its tasks, the
-    registered name with spaces for any other."""
-    return _TITLES.get(task, task.replace("_", " "))
+    """How a report names ``task``: the paper's words for its tasks, the task's
+    ``name`` with spaces for any other (also one named as ``module:Class``)."""
+    if task in _TITLES:
+        return _TITLES[task]
+    if ":" in task:
+        from sdbc_sim.tasks import find_task
+
+        task_class = find_task(task)
+        if task_class is not None:
+            task = task_class.name
+    return task.replace("_", " ")
 
 
 _TITLES = {

@@ -19,13 +19,15 @@ n individuals (Miller, 1955): 1.2 bits for 10 x 10 classes and n = 50. What a
 feature has above its chance level is what it shares with fitness.
 
 Which SDBC dimensions "the task-specific characterisation also has" is a judgement;
-it is made here, once, in :data:`TASK_SPECIFIC_FEATURES`: each task-specific feature
-maps to the SDBC dimensions that measure the same thing with the same aggregation (a
-feature averaged over the trial matches the (M) dimension, a final one the (F)).
+each task makes it once, in its ``sdbc_counterparts`` (read by
+:func:`task_specific_features`): each task-specific feature maps to the SDBC
+dimensions that measure the same thing with the same aggregation (a feature averaged
+over the trial matches the (M) dimension, a final one the (F)).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,37 +38,22 @@ from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information
 from sdbc_evolution.study.digest import TaskDigest
 from sdbc_evolution.study.rundirs import RunData
 
-TASK_SPECIFIC_FEATURES: dict[str, dict[str, tuple[str, ...]]] = {
-    "gate_escape": {
-        "escaped fraction": ("Agent group size (F)",),
-        # The trial ends a fixed 75 steps after the gate starts closing.
-        "time the gate started closing": ("Simulation length",),
-        "mean distance to the gate": ("Agent-gate distance (M)",),
-        "mean dispersion": ("Agent dispersion (M)",),
-    },
-    "resource_sharing": {
-        "survivors": ("Agent group size (F)",),
-        "mean energy": ("Agent energy level (M)",),
-        "mean speed": ("Agent linear speed (M)",),
-        "mean distance to the station": ("Agent-station distance (M)",),
-    },
-    "predator_prey": {
-        "prey captured": ("Prey group size (F)",),
-        "trial length": ("Simulation length",),
-        "final predator-prey distance": ("Predators-prey distance (F)",),
-        "mean predator dispersion": ("Predators dispersion (M)",),
-    },
-}
-"""Per task: task-specific feature -> the SDBC dimensions that match it."""
+
+def task_specific_features(task: str) -> Mapping[str, tuple[str, ...]]:
+    """Dimension of ``task``'s task-specific characterisation -> the SDBC dimensions
+    that match it, as the task declares them (``Task.sdbc_counterparts``); empty
+    for a task that declares none or that this project does not know."""
+    from sdbc_sim.tasks import find_task
+
+    task_class = find_task(task)
+    return dict(task_class.sdbc_counterparts) if task_class is not None else {}
 
 
 def task_specific_dimensions(task: str) -> frozenset[str]:
     """SDBC dimensions of ``task`` that its task-specific characterisation has
     (empty for a task without a mapping)."""
     return frozenset(
-        name
-        for names in TASK_SPECIFIC_FEATURES.get(task, {}).values()
-        for name in names
+        name for names in task_specific_features(task).values() for name in names
     )
 
 

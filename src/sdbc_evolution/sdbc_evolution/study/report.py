@@ -22,14 +22,13 @@ from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.study.claims import (
     LABELS,
     PAPER_RELEVANCE,
-    TASK_TITLES,
     Claim,
     Verdict,
 )
-from sdbc_evolution.study.paper import paper_generations
+from sdbc_evolution.study.paper import is_paper_task, paper_generations, task_title
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS
-from sdbc_evolution.study.relevance import TASK_SPECIFIC_FEATURES
+from sdbc_evolution.study.relevance import task_specific_features
 from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
 if TYPE_CHECKING:
@@ -71,7 +70,10 @@ def _rel(path: Path, start: Path) -> str:
 
 
 def _sizes(analysis: Analysis) -> list[str]:
+    """Each task's run sizes; the paper's beside them for the paper's tasks (and
+    no paper column at all when the study has none of them)."""
     study = analysis.digest
+    with_paper = any(is_paper_task(ta.task) for ta in analysis.tasks)
     rows = []
     for ta in analysis.tasks:
         config = study.of(ta.task)[0].config
@@ -79,41 +81,45 @@ def _sizes(analysis: Analysis) -> list[str]:
         per_treatment = ", ".join(
             f"{LABELS[t]} {runs[t]}" for t in ta.curves.treatments
         )
+        sizes = [
+            (config.ga.population_size, PAPER.ga.population_size),
+            (config.evaluation.trials, PAPER.evaluation.trials),
+            (
+                config.evaluation.reevaluation_trials,
+                PAPER.evaluation.reevaluation_trials,
+            ),
+            (config.resolved_generations, paper_generations(ta.task)),
+        ]
+        row = [task_title(ta.task), per_treatment]
+        if not with_paper:
+            rows.append(row + [str(ours) for ours, _ in sizes])
+            continue
         paper_gens = paper_generations(ta.task)
+        if paper_gens is None:
+            # A task the paper did not run: nothing of the paper's to compare.
+            rows.append(row + [f"{ours} (-)" for ours, _ in sizes] + ["-"])
+            continue
         ours = (
             config.ga.population_size
             * config.evaluation.trials
             * config.resolved_generations
         )
-        paper = (
-            PAPER.ga.population_size * PAPER.evaluation.trials * paper_gens
-            if paper_gens
-            else float("nan")
-        )
+        paper = PAPER.ga.population_size * PAPER.evaluation.trials * paper_gens
         rows.append(
-            [
-                TASK_TITLES.get(ta.task, ta.task),
-                per_treatment,
-                f"{config.ga.population_size} ({PAPER.ga.population_size})",
-                f"{config.evaluation.trials} ({PAPER.evaluation.trials})",
-                f"{config.evaluation.reevaluation_trials} "
-                f"({PAPER.evaluation.reevaluation_trials})",
-                f"{config.resolved_generations} ({paper_gens})",
-                f"{100 * ours / paper:.2g} %",
-            ]
+            row
+            + [f"{mine} ({theirs})" for mine, theirs in sizes]
+            + [f"{100 * ours / paper:.2g} %"]
         )
-    return _table(
-        [
+    header = ["task", "usable runs"]
+    header += ["population", "trials", "re-evaluation trials", "generations"]
+    if with_paper:
+        header = [
             "task",
             f"usable runs (paper: {PAPER_RUNS} each)",
-            "population (paper)",
-            "trials (paper)",
-            "re-evaluation trials (paper)",
-            "generations (paper)",
+            *(f"{h} (paper)" for h in header[2:]),
             "trials per run, share of the paper's",
-        ],
-        rows,
-    )
+        ]
+    return _table(header, rows)
 
 
 def session_wall_seconds(sessions: list[dict]) -> float:
@@ -153,7 +159,7 @@ def _wall_times(analysis: Analysis) -> list[str]:
             )
             rows.append(
                 [
-                    TASK_TITLES.get(ta.task, ta.task),
+                    task_title(ta.task),
                     _minutes(session_wall_seconds(sessions)),
                     str(len(sessions)),
                     how,
@@ -162,7 +168,7 @@ def _wall_times(analysis: Analysis) -> list[str]:
         else:
             rows.append(
                 [
-                    TASK_TITLES.get(ta.task, ta.task),
+                    task_title(ta.task),
                     f"not logged (runs' own wall time, summed: "
                     f"{_minutes(ta.cost.run_seconds)})",
                     "0",
@@ -189,7 +195,7 @@ def _claims_table(claims: list[Claim]) -> list[str]:
 
 def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
     out = analysis.out
-    title = TASK_TITLES.get(ta.task, ta.task)
+    title = task_title(ta.task)
     lines = [f"## {title[0].upper()}{title[1:]}", ""]
     lines += [
         f"![best fitness per generation]({_rel(ta.figures['curves'], out)}) "
@@ -232,16 +238,27 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
     if table is None:
         return lines + ["No usable NS-SD+ run: no weights to read.", ""]
     n = analysis.settings.top_features
+    # Only the paper's tasks have the paper's table (Table 1) to set beside ours.
+    with_paper = is_paper_task(ta.task)
     paper = {f.name: f for f in PAPER_RELEVANCE.get(ta.task, ())}
+    mapping = task_specific_features(ta.task)
     lines += [
         f"Mutual information I(F; k) = weight - delta of the NS-SD+ runs "
         f"({table.runs}), averaged over each run's generations; mean and SD over "
-        f"runs, bits. The {n} most relevant of {len(table.names)} dimensions; "
-        "the paper's values where its table lists the feature. Tick: the "
-        "task-specific characterisation has a matching feature (our mapping: "
-        + "; ".join(
-            f"{feature} = {', '.join(names)}"
-            for feature, names in TASK_SPECIFIC_FEATURES.get(ta.task, {}).items()
+        f"runs, bits. The {n} most relevant of {len(table.names)} dimensions"
+        + (
+            "; the paper's values where its table lists the feature"
+            if with_paper
+            else ""
+        )
+        + ". Tick: the task-specific characterisation has a matching feature ("
+        + (
+            "the task's mapping: "
+            + "; ".join(
+                f"{feature} = {', '.join(names)}" for feature, names in mapping.items()
+            )
+            if mapping
+            else "the task declares no mapping, so no tick"
         )
         + "). Chance: the same estimate with each population's fitness shuffled, "
         "the estimate's own bias at population "
@@ -263,21 +280,11 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
                 _f(top.sd[i], 2),
                 f"{top.chance[i]:.2f}",
                 "yes" if top.in_task_specific[i] else "",
-                f"{p.mean:.2f} ({p.sd:.2f})" if p else "",
             ]
+            + ([f"{p.mean:.2f} ({p.sd:.2f})" if p else ""] if with_paper else [])
         )
-    lines += _table(
-        [
-            "#",
-            "feature",
-            "mean MI",
-            "SD MI",
-            "chance",
-            "in TS char.",
-            "paper mean (SD)",
-        ],
-        rows,
-    )
+    header = ["#", "feature", "mean MI", "SD MI", "chance", "in TS char."]
+    lines += _table(header + (["paper mean (SD)"] if with_paper else []), rows)
     missing = [f for f in PAPER_RELEVANCE.get(ta.task, ()) if f.name not in top.names]
     notes = []
     for f in missing:
@@ -345,10 +352,10 @@ def _differences(analysis: Analysis) -> list[str]:
     claims = analysis.claims
     counts = Counter(c.verdict for c in claims)
     study = analysis.digest
-    some = study.runs[0].config
-    runs = Counter((r.task, r.treatment) for r in study.runs)
+    tasks = [ta.task for ta in analysis.tasks if is_paper_task(ta.task)]
+    some = study.of(tasks[0])[0].config
+    runs = Counter((r.task, r.treatment) for r in study.runs if r.task in tasks)
     least = min(runs.values())
-    tasks = [ta.task for ta in analysis.tasks]
     generations = " / ".join(
         str(study.of(t)[0].config.resolved_generations) for t in tasks
     )
@@ -410,8 +417,9 @@ def _differences(analysis: Analysis) -> list[str]:
 
 
 def _projection(analysis: Analysis) -> list[str]:
+    with_paper = any(is_paper_task(ta.task) for ta in analysis.tasks)
     lines = [
-        "## Cost, and the paper's study on a cluster",
+        "## Cost, and the paper's study on a cluster" if with_paper else "## Cost",
         "",
         "Measured in the run directories (`wall_time`, `evaluation_time`, trial "
         "lengths from the SDBC's 'Simulation length', workers from `study_run.json`); "
@@ -433,7 +441,7 @@ def _projection(analysis: Analysis) -> list[str]:
         ],
         [
             [
-                TASK_TITLES.get(c.task, c.task),
+                task_title(c.task),
                 str(c.runs),
                 f"{c.rate:,.0f}",
                 f"{c.seconds_per_generation:.3f}",
@@ -472,7 +480,7 @@ def _projection(analysis: Analysis) -> list[str]:
         some = task_wide[task]
         rows.append(
             [
-                TASK_TITLES.get(task, task),
+                task_title(task),
                 f"{some.cpu_hours:,.0f}",
                 f"{some.cpu_hours / some.runs:,.1f}",
             ]
@@ -532,16 +540,31 @@ def write_report(
 ) -> Path:
     """Writes the Markdown report of ``analysis`` to ``path``."""
     study = analysis.digest
-    lines = [
-        "# Replication of Gomes, Mariano & Christensen (ALIFE 2014): our numbers",
-        "",
-        "Novelty search with systematically derived behaviour characterisations "
-        "(SDBC), replicated with sdbc. Every number, table and figure below comes "
-        "from the run directories of the study, through its digest (`digest/`, from "
-        "which `sdbc-study analyse --from-digest` makes them again); the paper's "
-        "claims are set beside ours one by one.",
-        "",
-    ]
+    paper_tasks = [ta.task for ta in analysis.tasks if is_paper_task(ta.task)]
+    if paper_tasks:
+        lines = [
+            "# Replication of Gomes, Mariano & Christensen (ALIFE 2014): our numbers",
+            "",
+            "Novelty search with systematically derived behaviour characterisations "
+            "(SDBC), replicated with sdbc. Every number, table and figure below "
+            "comes from the run directories of the study, through its digest "
+            "(`digest/`, from which `sdbc-study analyse --from-digest` makes them "
+            "again); the paper's claims are set beside ours one by one.",
+            "",
+        ]
+    else:
+        # No task of the paper's: nothing of the paper's applies.
+        lines = [
+            "# A study with sdbc: "
+            + ", ".join(task_title(ta.task) for ta in analysis.tasks),
+            "",
+            "Novelty search with systematically derived behaviour characterisations "
+            "(SDBC) on tasks the paper did not run, so no claim or number of the "
+            "paper is set beside ours. Every number, table and figure below comes "
+            "from the run directories of the study, through its digest (`digest/`, "
+            "from which `sdbc-study analyse --from-digest` makes them again).",
+            "",
+        ]
     lines += _preset_line(analysis)
     lines += ["## What ran", ""]
     lines += _sizes(analysis)
@@ -573,7 +596,19 @@ def write_report(
         lines += ["Runs left out:", ""]
         lines += _problem_lines(analysis.problems, set(study.tasks()))
         lines += [""]
-    lines += ["## The paper's claims, one by one", ""]
+    if paper_tasks:
+        lines += _claims_section(analysis)
+    for ta in analysis.tasks:
+        lines += _task_section(ta, analysis)
+    if paper_tasks:
+        lines += _differences(analysis)
+    lines += _projection(analysis)
+    path.write_text("\n".join(lines))
+    return path
+
+
+def _claims_section(analysis: Analysis) -> list[str]:
+    lines = ["## The paper's claims, one by one", ""]
     lines += [
         f"Verdicts at alpha = {analysis.settings.alpha}: *agree* when our "
         "two-sided Mann-Whitney test is significant in the paper's direction (or, for "
@@ -588,9 +623,12 @@ def write_report(
         if claims:
             lines += [f"### {heading}", ""]
             lines += _claims_table(claims)
-    for ta in analysis.tasks:
-        lines += _task_section(ta, analysis)
-    lines += _differences(analysis)
-    lines += _projection(analysis)
-    path.write_text("\n".join(lines))
-    return path
+    others = [ta.task for ta in analysis.tasks if not is_paper_task(ta.task)]
+    if others:
+        lines += [
+            "The paper did not run "
+            + ", ".join(task_title(t) for t in others)
+            + ": no claim of the paper applies there.",
+            "",
+        ]
+    return lines
