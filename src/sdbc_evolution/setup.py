@@ -27,6 +27,7 @@ setup(
             "sdbc-graph = sdbc_evolution.graph.launch:main",
             "sdbc-evolve = sdbc_evolution.run.cli:main",
             "sdbc-study = sdbc_evolution.study.cli:main",
+            "sdbc-conformance = sdbc_evolution.conformance:main",
         ],
     },
 )

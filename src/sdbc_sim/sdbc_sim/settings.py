@@ -188,9 +188,21 @@ def is_settings(cls: Any) -> bool:
 
 
 def field_docs(cls: type) -> dict[str, str]:
-    """Field name -> its docstring, for a settings class."""
+    """Field name -> its docstring, for a settings class (a field a subclass
+    inherits keeps its base's docstring)."""
     fields = getattr(cls, "__pydantic_fields__", {})
-    return {name: info.description or "" for name, info in fields.items()}
+    docs = {}
+    for name in fields:
+        docs[name] = next(
+            (
+                base.__pydantic_fields__[name].description
+                for base in cls.__mro__
+                if name in getattr(base, "__pydantic_fields__", {})
+                and base.__pydantic_fields__[name].description
+            ),
+            "",
+        )
+    return docs
 
 
 def load(cls: type[T], data: Any, where: str = "") -> T:
