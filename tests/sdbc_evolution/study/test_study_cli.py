@@ -63,10 +63,10 @@ def test_a_failing_run_is_named_and_the_others_finish(
     doomed = study_plan(tiny_preset, root)[2].name
     original = runner.Experiment.create
 
-    def create(config, out_dir, evaluator, info=None):
+    def create(config, out_dir, evaluator, info=None, lock=None):
         if str(out_dir).endswith(doomed):
             raise RuntimeError("the disk is on fire")
-        return original(config, out_dir, evaluator, info)
+        return original(config, out_dir, evaluator, info, lock)
 
     monkeypatch.setattr(runner.Experiment, "create", create)
     said: list[str] = []
