@@ -420,10 +420,11 @@ class _Space:
         self.sorted_rows = np.array(list(row_of.values()), dtype=np.intp)[order]
         self.read_buf.clear()
         pb.get_space_bodies(self.space, _IDS, self.read_buf)
-        ids = memoryview(self.read_buf.int_buf()).cast("P").tolist()[: self.n_dynamic]
-        perm = np.empty(len(ids), dtype=np.intp)
-        perm[[row_of[i] for i in ids]] = np.arange(len(ids))
-        self.perm = None if np.array_equal(perm, np.arange(len(ids))) else perm
+        in_space = memoryview(self.read_buf.int_buf()).cast("P").tolist()
+        in_space = in_space[: self.n_dynamic]
+        perm = np.empty(len(in_space), dtype=np.intp)
+        perm[[row_of[i] for i in in_space]] = np.arange(len(in_space))
+        self.perm = None if np.array_equal(perm, np.arange(len(in_space))) else perm
 
     def rows_of(self, ids: np.ndarray) -> np.ndarray:
         """Rows of bodies given their ids; -1 for a static body."""

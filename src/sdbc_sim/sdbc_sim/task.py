@@ -70,7 +70,7 @@ import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Self
+from typing import Any, ClassVar, Generic, Self, TypeVar
 
 import numpy as np
 
@@ -181,9 +181,17 @@ class TrialArrays:
         )
 
 
-class Task(ABC):
+TrialsT = TypeVar("TrialsT", bound=TrialArrays)
+"""A task's own per-trial state (its :class:`TrialArrays` subclass)."""
+
+
+class Task(ABC, Generic[TrialsT]):
     """A task of the paper: arena, bodies, sensors, rules, fitness and
-    characterisation, over a batch of trials. See the module docstring."""
+    characterisation, over a batch of trials. See the module docstring.
+
+    Generic over its per-trial state: ``class GateEscape(Task[GateEscapeTrials])``
+    gets its own trials back in every method after :meth:`reset`.
+    """
 
     name: ClassVar[str]
     """The task's registered name ("gate_escape"): run folders and reports use it."""
@@ -205,6 +213,11 @@ class Task(ABC):
     max_steps: int
     characterisation_names: tuple[str, ...]
 
+    def __init__(self, config: Any) -> None:
+        """Builds the task from its settings (an instance of :attr:`config_class`);
+        a task's own ``__init__`` derives the rest from them."""
+        self.config = config
+
     @property
     def characterisation_size(self) -> int:
         """C, the length of the task-specific characterisation."""
@@ -218,7 +231,7 @@ class Task(ABC):
     @abstractmethod
     def reset(
         self, rngs: list[np.random.Generator]
-    ) -> tuple[TrialArrays, np.ndarray, np.ndarray]:
+    ) -> tuple[TrialsT, np.ndarray, np.ndarray]:
         """Initial conditions of ``len(rngs)`` trials.
 
         Returns:
@@ -226,30 +239,28 @@ class Task(ABC):
         """
 
     @abstractmethod
-    def sensors(self, trials: TrialArrays, bodies: BodyState) -> np.ndarray:
+    def sensors(self, trials: TrialsT, bodies: BodyState) -> np.ndarray:
         """(B, n_controlled, n_inputs) network inputs."""
 
     @abstractmethod
     def actuate(
-        self, trials: TrialArrays, bodies: BodyState, outputs: np.ndarray
+        self, trials: TrialsT, bodies: BodyState, outputs: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Speed and turn (B, R) of every body from the network outputs
         (B, n_controlled, n_outputs)."""
 
     @abstractmethod
-    def update(self, trials: TrialArrays, bodies: BodyState, step: int) -> np.ndarray:
+    def update(self, trials: TrialsT, bodies: BodyState, step: int) -> np.ndarray:
         """Rules after the physics step ``step`` (1-based); (B,) bool: trials that
         end at this step."""
 
     @abstractmethod
-    def task_state(
-        self, trials: TrialArrays, bodies: BodyState
-    ) -> tuple[GroupState, ...]:
+    def task_state(self, trials: TrialsT, bodies: BodyState) -> tuple[GroupState, ...]:
         """The task state of the live trials, one group per description group."""
 
     @abstractmethod
     def results(
-        self, trials: TrialArrays, length: np.ndarray
+        self, trials: TrialsT, length: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Fitness (B,) and task-specific characterisation (B, C) of trials that
         ended after ``length`` (B,) steps."""

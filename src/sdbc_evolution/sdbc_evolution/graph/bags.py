@@ -25,10 +25,11 @@ import importlib
 from collections.abc import Iterable, Sequence
 from io import BytesIO
 from pathlib import Path
-from typing import Any
+from typing import Any, Final, Literal
 
 from rosbags.interfaces import (
     Connection,
+    ConnectionExtRosbag2,
     Qos,
     QosDurability,
     QosHistory,
@@ -46,7 +47,7 @@ from rosbags.rosbag2.storage_mcap import (
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-BAG_VERSION = 9
+BAG_VERSION: Final[Literal[9]] = 9
 """rosbag2 metadata version written (that of ROS 2 Jazzy)."""
 PROJECT_INTERFACES = ("sdbc_msgs",)
 """Interface packages of this project, registered in every bag's type store."""
@@ -64,6 +65,13 @@ def _jazzy(metadata: str) -> str:
             "(requirements.txt pins the version this module was written for)"
         )
     return metadata.replace(_ROSBAGS_DISTRO_LINE, f"ros_distro: {ROS_DISTRO}")
+
+
+def _rosbag2_ext(connection: Connection) -> ConnectionExtRosbag2:
+    """The rosbag2 part of a connection of a rosbag2 bag."""
+    if not isinstance(connection.ext, ConnectionExtRosbag2):
+        raise TypeError(f"connection {connection.topic!r} is not of a rosbag2 bag")
+    return connection.ext
 
 
 class _Rosbag2McapWriter(McapWriter):
@@ -84,7 +92,7 @@ class _Rosbag2McapWriter(McapWriter):
                 connection.id,
                 connection.msgtype,
                 connection.topic,
-                connection.ext.serialization_format,
+                _rosbag2_ext(connection).serialization_format,
                 metadata.getvalue(),
             )
         )
@@ -221,10 +229,11 @@ class BagWriter:
         if self.path.exists():
             raise FileExistsError(f"bag {self.path} exists already; not overwriting")
         self.typestore = typestore if typestore is not None else project_typestore()
-        self._writer = _Rosbag2Writer(
+        writer = _Rosbag2Writer(
             self.path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP
         )
-        self._writer.open()
+        writer.open()
+        self._writer: _Rosbag2Writer | None = writer
         self._connections: dict[str, Connection] = {}
         self.counts: dict[str, int] = {}
 
@@ -247,7 +256,7 @@ class BagWriter:
                 )
             return
         ensure_type(self.typestore, msgtype)
-        self._connections[topic] = self._writer.add_connection(
+        self._connections[topic] = self._open().add_connection(
             topic,
             msgtype,
             typestore=self.typestore,
@@ -262,8 +271,13 @@ class BagWriter:
 
     def write(self, topic: str, timestamp_ns: int, data: bytes) -> None:
         """Writes one CDR-serialised message received at ``timestamp_ns``."""
-        self._writer.write(self._connections[topic], timestamp_ns, data)
+        self._open().write(self._connections[topic], timestamp_ns, data)
         self.counts[topic] += 1
+
+    def _open(self) -> _Rosbag2Writer:
+        if self._writer is None:
+            raise ValueError(f"bag {self.path} is closed")
+        return self._writer
 
     def close(self) -> None:
         """Finishes the MCAP file and writes ``metadata.yaml``; idempotent."""

@@ -45,6 +45,7 @@ import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
@@ -82,6 +83,8 @@ TREATMENT_NAMES = {"fit": "Fit", "ns-ts": "NS-TS", "ns-sd": "NS-SD", "ns-sd+": "
 """The paper's names of the treatments, as GenerationStats carries them."""
 DEFAULT_GRAPH_TIMEOUT = 60.0
 """Seconds to wait for the live graph (simulator, controllers) to answer."""
+_Value = TypeVar("_Value", bool, int, float, str)
+"""The type of a parameter, given by its default."""
 STOP_WAIT = 5.0
 """Seconds the experiment thread gets to stop after Ctrl-C."""
 
@@ -111,7 +114,7 @@ class EvolutionNode(Node):
         ValueError: A bad parameter or configuration, naming it.
     """
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__(EVOLUTION_NODE, **kwargs)
         p = self._declare
         self.task_name = p("task", "", "Task of the graph (empty: the config's)")
@@ -205,8 +208,8 @@ class EvolutionNode(Node):
         )
 
     def _declare(
-        self, name: str, default, description: str, minimum: int | None = None
-    ):
+        self, name: str, default: _Value, description: str, minimum: int | None = None
+    ) -> _Value:
         descriptor = ParameterDescriptor(description=description, read_only=True)
         if minimum is not None:
             descriptor.integer_range = [

@@ -212,7 +212,7 @@ class RecorderNode(Node):
                 self.discover()
                 next_look = now + DISCOVERY_PERIOD
             subscriptions = list(self._subscriptions_by_topic.items())
-            if len(subscriptions) != n_waited:
+            if wait_set is None or len(subscriptions) != n_waited:
                 n_waited = len(subscriptions)
                 wait_set = _rclpy.WaitSet(n_waited, 1, 0, 0, 0, 0, self.context.handle)
             wait_set.clear_entities()

@@ -47,7 +47,7 @@ from sdbc_evolution.run.request import (
     default_out,
     resolve_config,
 )
-from sdbc_evolution.run.results import read_generations
+from sdbc_evolution.run.results import GenerationRecord, read_generations
 from sdbc_evolution.run.stopping import stoppable
 from sdbc_evolution.run.system_errors import one_line_errors
 
@@ -199,7 +199,7 @@ def _run(experiment: Experiment, out: Path, quiet: bool) -> int:
     )
     best = -np.inf
 
-    def progress(record) -> None:
+    def progress(record: GenerationRecord) -> None:
         nonlocal best
         best = max(best, record.best_fitness)
         bar.set_postfix(gen=record.generation, best=f"{best:.4f}", refresh=False)

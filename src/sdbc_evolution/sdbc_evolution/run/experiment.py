@@ -458,6 +458,6 @@ class Experiment:
             archive_fitness=state.archive.fitness,
             archive_generation=state.archive.generation,
             weights=state.weights,
-            ga_rng=state.rng.bit_generator.state,
-            reevaluation_rng=state.reevaluation_rng.bit_generator.state,
+            ga_rng=dict(state.rng.bit_generator.state),
+            reevaluation_rng=dict(state.reevaluation_rng.bit_generator.state),
         )

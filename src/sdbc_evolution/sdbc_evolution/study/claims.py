@@ -28,6 +28,7 @@ The exploration claims apply the first rule to per-run numbers of the maps
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 
@@ -197,7 +198,12 @@ def quality_claims(
     title = task_title(task)
     claims = []
 
-    def add(statement: str, paper: str, test: PairTest | None, rule) -> None:
+    def add(
+        statement: str,
+        paper: str,
+        test: PairTest | None,
+        rule: Callable[[PairTest, float], Verdict],
+    ) -> None:
         if test is None:
             return
         claims.append(

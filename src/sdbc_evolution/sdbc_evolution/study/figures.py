@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -35,7 +36,7 @@ MAX_CIRCLE_AREA = 160.0
 """Area (points^2) of the circle of the largest mean share in any panel."""
 
 
-def _pyplot():
+def _pyplot() -> ModuleType:
     import matplotlib
 
     matplotlib.use("Agg")

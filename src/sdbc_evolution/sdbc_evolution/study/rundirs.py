@@ -261,7 +261,10 @@ def load_study(root: str | Path) -> StudyData:
     problems: list[RunProblem] = []
     for path in find_runs(root):
         loaded = load_run(path, root)
-        (runs if isinstance(loaded, RunData) else problems).append(loaded)
+        if isinstance(loaded, RunData):
+            runs.append(loaded)
+        else:
+            problems.append(loaded)
     expected = None
     if (root / STUDY_FILE).is_file():
         try:

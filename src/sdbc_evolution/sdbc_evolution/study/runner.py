@@ -466,14 +466,13 @@ def _run_one_by_one(
     results = []
     for spec, done in todo:
         progress.started(spec.name, done, spec.generations)
+
+        def advance(generation: int, spec: RunSpec = spec) -> None:
+            progress.generation(spec.name, generation, spec.generations)
+
         with evaluator_for(spec) as evaluator:
             try:
-                result = execute_run(
-                    spec,
-                    evaluator,
-                    lambda g, s=spec: progress.generation(s.name, g, s.generations),
-                    note,
-                )
+                result = execute_run(spec, evaluator, advance, note)
             except SchedulerLost:
                 raise  # every run after this one would fail the same way
             except Exception:

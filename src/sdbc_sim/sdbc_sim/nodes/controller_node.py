@@ -34,6 +34,7 @@ import argparse
 import sys
 import time
 from collections.abc import Iterator, Sequence
+from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
@@ -107,7 +108,7 @@ class ControllerNode(Node):
         ValueError: A bad task, task_config or start-up genome, naming it.
     """
 
-    def __init__(self, robot: int = 0, **kwargs) -> None:
+    def __init__(self, robot: int = 0, **kwargs: Any) -> None:
         super().__init__(CONTROLLER_NODE, namespace=robot_namespace(robot), **kwargs)
         task_name = self.declare_parameter(
             "task",

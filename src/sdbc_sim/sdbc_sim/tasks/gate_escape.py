@@ -173,7 +173,7 @@ class GateEscapeTrials(TrialArrays):
     dispersion_sum: np.ndarray
 
 
-class GateEscape(Task):
+class GateEscape(Task[GateEscapeTrials]):
     """The gate escape task over a batch of trials."""
 
     name = "gate_escape"

@@ -188,7 +188,7 @@ class PredatorPreyTrials(TrialArrays):
     dispersion_sum: np.ndarray
 
 
-class PredatorPrey(Task):
+class PredatorPrey(Task[PredatorPreyTrials]):
     """The predator-prey pursuit task over a batch of trials."""
 
     name = "predator_prey"

@@ -290,7 +290,7 @@ class ResourceSharingTrials(TrialArrays):
     sampled_distance: np.ndarray
 
 
-class ResourceSharing(Task):
+class ResourceSharing(Task[ResourceSharingTrials]):
     """The resource sharing task over a batch of trials."""
 
     name = "resource_sharing"
@@ -458,7 +458,7 @@ class ResourceSharing(Task):
         agents = bodies.kinematics(2)
         agents[..., 4] = trials.energy
         agents[..., 5] = trials.charging
-        occupied = trials.charging.any(axis=1).astype(np.float64)[:, None, None]
+        occupied = np.asarray(trials.charging.any(axis=1), np.float64)[:, None, None]
         return (
             GroupState(
                 present=trials.energy > 0.0,
