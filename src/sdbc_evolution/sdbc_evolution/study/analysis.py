@@ -28,25 +28,19 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.run.results import npz_bytes
 from sdbc_evolution.study.claims import (
-    ALPHA,
     Claim,
     exploration_claims,
     quality_claims,
     relevance_claims,
 )
 from sdbc_evolution.study.cost import (
-    CLUSTER_WORKERS,
-    Projection,
-    TaskCost,
     paper_preset,
     projections,
     task_cost,
@@ -58,81 +52,21 @@ from sdbc_evolution.study.digest import (
     read_digest,
     write_digest,
 )
-from sdbc_evolution.study.exploration import ExplorationMaps, SomSettings
 from sdbc_evolution.study.figures import plot_bests, plot_curves, plot_exploration
+from sdbc_evolution.study.findings import Analysis, AnalysisSettings, TaskAnalysis
 from sdbc_evolution.study.quality import (
-    Curves,
-    PairTest,
     best_curves,
     pairwise_tests,
     run_bests,
 )
 from sdbc_evolution.study.reduce import reduce_study
-from sdbc_evolution.study.relevance import RelevanceTable, relevance_table
-from sdbc_evolution.study.rundirs import RunProblem, load_study
+from sdbc_evolution.study.relevance import relevance_table
+from sdbc_evolution.study.report import write_report
+from sdbc_evolution.study.rundirs import load_study
 
 FIGURES_DIR = "figures"
 TABLES_DIR = "tables"
 REPORT_FILE = "report.md"
-
-
-@dataclass(frozen=True)
-class AnalysisSettings:
-    """How a study is analysed."""
-
-    som: SomSettings = field(default_factory=SomSettings)
-    """The exploration maps."""
-    top_features: int = 6
-    """Features per task in the report's relevance table (the paper: 5-6)."""
-    alpha: float = ALPHA
-    """Significance level of the claims."""
-    cluster_workers: tuple[int, ...] = CLUSTER_WORKERS
-    """Cluster sizes of the paper preset's projection."""
-
-    def __post_init__(self) -> None:
-        if self.top_features < 1:
-            raise ValueError(f"top_features must be >= 1, got {self.top_features}")
-        if not 0 < self.alpha < 1:
-            raise ValueError(f"alpha must be in (0, 1), got {self.alpha}")
-        if not self.cluster_workers or min(self.cluster_workers) < 1:
-            raise ValueError("cluster_workers must be positive")
-
-
-@dataclass
-class TaskAnalysis:
-    """Everything computed for one task."""
-
-    task: str
-    curves: Curves
-    bests: dict[Treatment, np.ndarray]
-    best_runs: dict[Treatment, tuple[str, ...]]
-    tests: list[PairTest]
-    relevance: RelevanceTable | None
-    maps: ExplorationMaps
-    cost: TaskCost
-    figures: dict[str, Path]
-
-
-@dataclass
-class Analysis:
-    """A whole study's analysis."""
-
-    digest: StudyDigest
-    settings: AnalysisSettings
-    tasks: list[TaskAnalysis]
-    claims: list[Claim]
-    projections: list[Projection]
-    out: Path
-
-    @property
-    def problems(self) -> list[RunProblem]:
-        """Runs left out."""
-        return list(self.digest.problems)
-
-    @property
-    def sessions(self) -> list[dict[str, Any]]:
-        """The study log's entries."""
-        return list(self.digest.sessions)
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
@@ -341,8 +275,6 @@ def analyse_digest(
 ) -> Analysis:
     """Every table, figure and the report of ``digest`` into ``out``; the maps'
     settings are the digest's own."""
-    from sdbc_evolution.study.report import write_report
-
     settings = settings or AnalysisSettings()
     if digest.task_digests:
         settings = dataclasses.replace(

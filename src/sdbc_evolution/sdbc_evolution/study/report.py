@@ -25,6 +25,7 @@ from sdbc_evolution.study.claims import (
     Claim,
     Verdict,
 )
+from sdbc_evolution.study.findings import Analysis, TaskAnalysis
 from sdbc_evolution.study.paper import is_paper_task, paper_generations, task_title
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS
@@ -32,7 +33,6 @@ from sdbc_evolution.study.relevance import task_specific_features
 from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
 if TYPE_CHECKING:
-    from sdbc_evolution.study.analysis import Analysis, TaskAnalysis
     from sdbc_evolution.study.cost import Projection
 
 CLAIM_TOPICS = {
