@@ -162,7 +162,7 @@ class AggregationTrials(TrialArrays):
     samples: np.ndarray
 
 
-class Aggregation(Task):
+class Aggregation(Task[AggregationTrials]):
     """The aggregation task over a batch of trials."""
 
     name = "aggregation"

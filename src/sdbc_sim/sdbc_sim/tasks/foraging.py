@@ -195,7 +195,7 @@ class ForagingTrials(TrialArrays):
     nest_distance: np.ndarray
 
 
-class Foraging(Task):
+class Foraging(Task[ForagingTrials]):
     """The central-place foraging task over a batch of trials."""
 
     name = "foraging"
@@ -382,9 +382,9 @@ class Foraging(Task):
         in_nest = nest <= c.nest_radius
         drops = in_nest & (trials.load >= 0)
         if drops.any():
-            t, i = np.nonzero(drops)
-            trials.carrier[t, trials.load[t, i]] = _GONE
-            trials.load[t, i] = -1
+            t, robot = np.nonzero(drops)
+            trials.carrier[t, trials.load[t, robot]] = _GONE
+            trials.load[t, robot] = -1
             trials.delivered += robot_sum(drops.astype(np.int64))
         trials.carrying_steps += robot_sum((trials.load >= 0).astype(np.int64))
         trials.nest_steps += robot_sum(in_nest.astype(np.int64))
