@@ -194,15 +194,15 @@ def field_docs(cls: type) -> dict[str, str]:
     docs = {}
     for name in fields:
         docs[name] = next(
-            (
-                base.__pydantic_fields__[name].description
-                for base in cls.__mro__
-                if name in getattr(base, "__pydantic_fields__", {})
-                and base.__pydantic_fields__[name].description
-            ),
-            "",
+            (d for base in cls.__mro__ if (d := _description(base, name))), ""
         )
     return docs
+
+
+def _description(cls: type, name: str) -> str | None:
+    """The docstring of field ``name`` as ``cls`` itself declares it, if any."""
+    field = getattr(cls, "__pydantic_fields__", {}).get(name)
+    return None if field is None else field.description
 
 
 def load(cls: type[T], data: Any, where: str = "") -> T:
