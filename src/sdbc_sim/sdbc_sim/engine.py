@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sdbc_sim.network import TeamNetworks, check_genomes
-from sdbc_sim.observer import Observer
+from sdbc_sim.observer import NetworkObserver, Observer
 from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
 from sdbc_sim.task import BodyState, Task
 from sdbc_sim.task_state import GroupState, TaskState
@@ -136,6 +136,8 @@ class BatchSimulation:
         self.fitness = np.full(n, np.nan)
         self.characterisation = np.full((n, task.characterisation_size), np.nan)
         self._full: dict[tuple[int, int], np.ndarray] = {}
+        self.network_observers: list[NetworkObserver] = []
+        """Observers handed the network inputs and outputs at every step."""
 
     @property
     def live(self) -> np.ndarray:
@@ -178,10 +180,12 @@ class BatchSimulation:
         task = self.task
         n_live = self.live.shape[0]
         shape = (n_live, self._n_ctrl, task.network.n_outputs)
+        inputs: np.ndarray | None = None
         if outputs is None:
             if self._networks is None:
                 raise ValueError("step: this simulation has no genomes; pass outputs")
-            outputs = self._networks.forward(self.sensors())
+            inputs = self.sensors()
+            outputs = self._networks.forward(inputs)
         else:
             outputs = np.asarray(outputs, dtype=np.float64)
             if outputs.shape != shape:
@@ -192,6 +196,8 @@ class BatchSimulation:
                 raise ValueError(
                     "step: outputs must lie in [0, 1] (NaN is not allowed)"
                 )
+        if self.network_observers:
+            self._tell_network_observers(inputs, outputs)
         speed, turn = task.actuate(self.trials, self.bodies, outputs)
         self.spaces.step(self._drive(speed, turn), self._rows)
         self.spaces.separate(self._rows, self.bodies.enabled, self._anchored)
@@ -224,6 +230,23 @@ class BatchSimulation:
             self.done[ids] = True
             self._running &= ~ends
         self._compact_if_worthwhile()
+
+    def _tell_network_observers(
+        self, inputs: np.ndarray | None, outputs: np.ndarray
+    ) -> None:
+        """Hands the running trials' network inputs and outputs to the observers
+        that ask for them (reading the sensors adds nothing to the trials: they are
+        a pure function of the state)."""
+        if inputs is None:
+            inputs = self.sensors()
+        running = self._running
+        enabled = self.bodies.enabled[:, : self._n_ctrl]
+        trials = self.live
+        if not running.all():
+            trials, inputs = trials[running], inputs[running]
+            outputs, enabled = outputs[running], enabled[running]
+        for observer in self.network_observers:
+            observer.observe_network(trials, inputs, outputs, enabled)
 
     def _drive(self, speed: np.ndarray, turn: np.ndarray) -> np.ndarray:
         """Drive rows (rows, 4), laid out as ``spaces.drive_columns``: angle,
@@ -380,7 +403,9 @@ def run_batch(
         seeds: (G, T) int64, seed of genome g's t-th trial.
         observers: Called ``start(task.description, G * T)`` once, then
             ``observe(state)`` after every step, with the trials in row-major
-            order (trial b = g T + t).
+            order (trial b = g T + t). Those that are
+            :class:`~sdbc_sim.observer.NetworkObserver` s are also handed the
+            network inputs and outputs at every step.
         fitness_mean: "harmonic" (the authors') or "arithmetic".
         settings: Engine settings.
 
@@ -401,6 +426,7 @@ def run_batch(
     sim = BatchSimulation(task, s.reshape(-1), np.repeat(g, n_trials, axis=0), settings)
     for o in observers:
         o.start(task.description, sim.n_trials)
+    sim.network_observers = [o for o in observers if isinstance(o, NetworkObserver)]
     while not sim.finished:
         sim.step()
         if observers:

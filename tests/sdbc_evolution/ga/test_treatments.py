@@ -22,8 +22,7 @@ def evaluation(n: int = 8, seed: int = 0) -> Evaluation:
     return Evaluation(
         fitness=rng.random(n),
         trial_fitness=rng.random((n, 2)),
-        characterisation=rng.random((n, 3)),
-        sdbc=sdbc,
+        behaviours={"task": rng.random((n, 3)), "sdbc": sdbc},
     )
 
 

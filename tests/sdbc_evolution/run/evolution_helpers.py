@@ -87,8 +87,10 @@ class ToyEvaluator(Evaluator):
         return Evaluation(
             fitness=controller_fitness(trial_fitness),
             trial_fitness=trial_fitness,
-            characterisation=characterisation.mean(axis=1),
-            sdbc=sdbc.mean(axis=1),
+            behaviours={
+                "task": characterisation.mean(axis=1),
+                "sdbc": sdbc.mean(axis=1),
+            },
         )
 
 

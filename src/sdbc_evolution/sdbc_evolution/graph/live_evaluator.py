@@ -62,8 +62,10 @@ class LiveEvaluator(Evaluator):
         return Evaluation(
             fitness=controller_fitness(fitness, self.spec.fitness_mean),
             trial_fitness=fitness,
-            characterisation=np.asarray(characterisation).mean(axis=1),
-            sdbc=np.asarray(sdbc).mean(axis=1),
+            behaviours={
+                "task": np.asarray(characterisation).mean(axis=1),
+                "sdbc": np.asarray(sdbc).mean(axis=1),
+            },
         )
 
     def close(self) -> None:

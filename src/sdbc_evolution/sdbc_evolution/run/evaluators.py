@@ -2,10 +2,11 @@
 
 Every evaluator takes genomes (G, W) and trial seeds (G, T) and returns an
 :class:`Evaluation`: per controller its fitness (the engine's aggregate over its
-trials), its task-specific characterisation and its raw SDBC vector (the mean over its
-trials of the per-trial vectors), plus the per-trial fitness. The batch is cut into
-chunks of whole controllers; every chunk is one ``run_batch`` call with an
-:class:`~sdbc_evolution.sdbc.characterisation.SdbcExtractor` observing it. Since the
+trials) and one behaviour vector per characterisation the task spec asks for (the
+task-specific one and the paper's SDBC always; see
+:mod:`sdbc_evolution.characterise.registry`), each the mean over its trials, plus the
+per-trial fitness. The batch is cut into chunks of whole controllers; every chunk is
+one ``run_batch`` call with the characterisers observing it. Since the
 engine makes a trial's result depend only on (task settings, genome, seed), chunking
 and the number of workers cannot change the results, so every evaluator returns the
 same arrays to the bit.
@@ -40,7 +41,11 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from sdbc_evolution.characterise.evaluation import SDBC, TASK, Evaluation
+from sdbc_evolution.characterise.registry import ALWAYS, CharacterisationSpec
 from sdbc_evolution.run.processes import available_cores, worker_pool
+
+__all__ = ["Evaluation", "Evaluator", "TaskInfo", "TaskSpec"]
 
 DEFAULT_CONNECT_TIMEOUT = 10.0
 """Seconds to wait for a Dask scheduler before giving up."""
@@ -57,11 +62,21 @@ class TaskSpec:
         name: Task name in the ``sdbc_sim.tasks`` registry.
         overrides: Settings that differ from the task's defaults.
         fitness_mean: "harmonic" or "arithmetic" (see ``sdbc_sim.engine.run_batch``).
+        characterisations: Characterisations to compute besides the task-specific
+            one and the paper's SDBC, which every evaluation carries.
     """
 
     name: str
     overrides: Mapping[str, Any] = field(default_factory=dict)
     fitness_mean: str = "harmonic"
+    characterisations: tuple[CharacterisationSpec, ...] = ()
+
+    def all_characterisations(self) -> tuple[CharacterisationSpec, ...]:
+        """Every characterisation an evaluation carries, each once, by key."""
+        unique: dict[str, CharacterisationSpec] = {}
+        for spec in (*ALWAYS, *self.characterisations):
+            unique.setdefault(spec.key, spec)
+        return tuple(unique.values())
 
     def key(self) -> tuple[str, str]:
         """A hashable identity of the task, for caching built tasks."""
@@ -83,52 +98,42 @@ class TaskInfo:
         genome_length: W, the number of network weights.
         characterisation_size: C, length of the task-specific characterisation.
         sdbc_names: Names of the D dimensions of the raw SDBC vector.
+        behaviour_names: Characterisation key -> names of its dimensions, for
+            every characterisation the evaluations carry.
     """
 
     name: str
     genome_length: int
     characterisation_size: int
     sdbc_names: tuple[str, ...]
+    behaviour_names: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
     @classmethod
     def of(cls, spec: TaskSpec) -> TaskInfo:
-        """Builds the task once and reads its sizes."""
-        from sdbc_evolution.sdbc.characterisation import dimension_names
+        """Builds the task once and reads its sizes and dimension names.
 
+        Raises:
+            ValueError: A characterisation cannot be made for this task.
+        """
         task = spec.build()
+        names = {c.key: c.build().names(task) for c in spec.all_characterisations()}
         return cls(
             name=spec.name,
             genome_length=int(task.genome_length),
             characterisation_size=int(task.characterisation_size),
-            sdbc_names=tuple(dimension_names(task.description)),
+            sdbc_names=names[SDBC],
+            behaviour_names=names,
         )
 
-
-@dataclass
-class Evaluation:
-    """The evaluation of G controllers in T trials each.
-
-    Attributes:
-        fitness: (G,) controller fitness (the engine's aggregate over trials).
-        trial_fitness: (G, T) fitness of every trial.
-        characterisation: (G, C) task-specific characterisation, mean over trials.
-        sdbc: (G, D) raw SDBC vector, mean over trials.
-    """
-
-    fitness: np.ndarray
-    trial_fitness: np.ndarray
-    characterisation: np.ndarray
-    sdbc: np.ndarray
-
-    @classmethod
-    def concatenate(cls, parts: list[Evaluation]) -> Evaluation:
-        """Joins the evaluations of consecutive chunks."""
-        return cls(
-            **{
-                name: np.concatenate([getattr(p, name) for p in parts])
-                for name in ("fitness", "trial_fitness", "characterisation", "sdbc")
-            }
-        )
+    def names_of(self, key: str) -> tuple[str, ...]:
+        """Dimension names of the characterisation ``key``."""
+        if key in self.behaviour_names:
+            return tuple(self.behaviour_names[key])
+        if key == SDBC:
+            return self.sdbc_names
+        if key == TASK:
+            return tuple(f"{TASK} {i}" for i in range(self.characterisation_size))
+        raise KeyError(f"task {self.name!r}: no characterisation {key!r} was computed")
 
 
 _TASKS: dict[tuple[str, str], Any] = {}
@@ -146,25 +151,26 @@ def evaluate_chunk(
     """
     from sdbc_sim.engine import run_batch
 
-    from sdbc_evolution.sdbc.characterisation import SdbcExtractor
-
     key = spec.key()
     if key not in _TASKS:
         _TASKS[key] = spec.build()
     task = _TASKS[key]
-    extractor = SdbcExtractor(check_values=False)
+    characterisers = {c.key: c.build() for c in spec.all_characterisations()}
     result = run_batch(
-        task, genomes, seeds, observers=(extractor,), fitness_mean=spec.fitness_mean
+        task,
+        genomes,
+        seeds,
+        observers=tuple(c for c in characterisers.values() if c.observes),
+        fitness_mean=spec.fitness_mean,
     )
-    g, t = seeds.shape
-    per_trial = extractor.characterisations().reshape(g, t, -1)
+    trials = seeds.shape[1]
     return Evaluation(
         fitness=np.asarray(result.controller_fitness, dtype=np.float64),
         trial_fitness=np.asarray(result.fitness, dtype=np.float64),
-        characterisation=np.asarray(
-            result.controller_characterisation, dtype=np.float64
-        ),
-        sdbc=per_trial.mean(axis=1),
+        behaviours={
+            k: np.asarray(c.controller_vectors(result, trials), dtype=np.float64)
+            for k, c in characterisers.items()
+        },
     )
 
 

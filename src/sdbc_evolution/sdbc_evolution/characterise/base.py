@@ -1,0 +1,42 @@
+"""What a characteriser is: an engine observer that turns a batch's trials into
+per-controller behaviour vectors with named dimensions.
+
+A characteriser is built fresh for every batch (chunk) a worker evaluates. Those
+that observe the engine are handed to ``run_batch`` as observers; those that also
+need the robots' network inputs and outputs implement ``observe_network``
+(:class:`sdbc_sim.observer.NetworkObserver`) and get them.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+import numpy as np
+
+
+class Characteriser(ABC):
+    """Produces one characterisation of every controller of a batch."""
+
+    observes: bool = True
+    """Whether ``run_batch`` should hand it the task states (and, with
+    ``observe_network``, the network arrays)."""
+
+    @abstractmethod
+    def names(self, task: Any) -> tuple[str, ...]:
+        """The human name of every dimension, for ``task``.
+
+        Raises:
+            ValueError: The characterisation cannot be made for this task (the
+                message names the characteriser and the problem).
+        """
+
+    @abstractmethod
+    def controller_vectors(self, result: Any, trials: int) -> np.ndarray:
+        """(G, D) vectors of the G controllers after ``run_batch`` returned
+        ``result``; ``trials`` per controller, laid out controller-major."""
+
+
+def per_controller(per_trial: np.ndarray, trials: int) -> np.ndarray:
+    """(G, D) mean over each controller's ``trials`` rows of (G T, D) vectors."""
+    return per_trial.reshape(per_trial.shape[0] // trials, trials, -1).mean(axis=1)
