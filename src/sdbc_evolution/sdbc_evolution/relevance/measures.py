@@ -1,0 +1,272 @@
+"""Relevance of every dimension of raw behaviour vectors to fitness, one population
+at a time; weights are then w_k = delta + relevance_k (the paper's eq. 6 form).
+
+Every measure comes from a library (scikit-learn, scipy, dcor); none is a
+hand-written estimator:
+
+- ``mi`` (the paper): I(F; k) in bits on discretised variables
+  (:func:`sdbc_evolution.sdbc.weighting.mutual_information`).
+- ``mi_chance``: I(F; k) minus its chance level, the same estimate with the fitness
+  shuffled (:func:`chance_information`, mean over ``shuffles`` permutations), at
+  least 0. At small populations the plug-in MI of a feature unrelated to fitness is
+  far from 0 (about (b_F - 1)(b_k - 1) / (2 n ln 2) bits, Miller 1955); this keeps
+  only what a feature shares with fitness beyond that.
+- ``pearson``: |r| (``scipy.stats.pearsonr``); 0 for a constant dimension.
+- ``spearman``: |rho| (``scipy.stats.spearmanr``); 0 for a constant dimension.
+- ``dcor``: distance correlation (``dcor.distance_correlation``), in [0, 1], which
+  also sees non-monotonic dependence.
+- ``mrmr``: minimum redundancy, maximum relevance (Peng et al. 2005; with
+  ``redundancy: sum``, Battiti's MIFS with beta = 1): dimensions are selected
+  greedily by I(F; k) minus the mean (sum) of I(k; j) over the dimensions j selected
+  before; a dimension's relevance is that score when it was selected, at least 0. So
+  of two copies of one feature, the second counts for little (the paper's extension
+  (iii): weighting that removes redundancy). I(k; j) uses the features'
+  discretisation of ``mi``.
+
+Each measure draws exactly one integer from the run's generator (for k-means and
+shuffles), whether or not it uses it, so that the generator's stream does not depend
+on the measure's internals.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from sdbc_evolution.sdbc.settings import changed_options, declared_part
+from sdbc_evolution.sdbc.weighting import (
+    WeightingSettings,
+    _validated,
+    equal_width_classes,
+    kmeans_classes,
+    mutual_information,
+)
+
+SEED_BOUND = 2**31 - 1
+"""Seeds handed to scikit-learn must fit a 32-bit signed integer."""
+CHANCE_SEED = 2014
+"""Seeds the fitness shuffles of the chance level (with the population's seed)."""
+
+
+def chance_information(
+    raw: np.ndarray,
+    fitness: np.ndarray,
+    settings: WeightingSettings,
+    seed: int,
+    shuffles: int = 1,
+) -> np.ndarray:
+    """(D,) I(F'; k) in bits with F' the fitness in a random order, the mean over
+    ``shuffles`` orders: the MI the estimate gives features unrelated to fitness.
+
+    The orders come from ``numpy.random.default_rng((CHANCE_SEED, seed))``, and
+    ``seed`` also seeds the k-means, so the level is a function of its arguments.
+    """
+    rng = np.random.default_rng((CHANCE_SEED, seed))
+    return np.mean(
+        [
+            mutual_information(raw, rng.permutation(fitness), settings, seed)
+            for _ in range(shuffles)
+        ],
+        axis=0,
+    )
+
+
+@dataclass(frozen=True)
+class MiOptions:
+    """The paper's mutual information has no options beyond ``weighting``."""
+
+
+@dataclass(frozen=True)
+class MiChanceOptions:
+    """Chance-corrected mutual information."""
+
+    shuffles: int = 1
+    """Fitness permutations averaged for the chance level."""
+
+    def __post_init__(self) -> None:
+        if self.shuffles < 1:
+            raise ValueError(f"mi_chance: shuffles {self.shuffles} must be >= 1")
+
+
+@dataclass(frozen=True)
+class CorrelationOptions:
+    """Correlations have no options."""
+
+
+@dataclass(frozen=True)
+class MrmrOptions:
+    """Redundancy-aware selection."""
+
+    redundancy: Literal["mean", "sum"] = "mean"
+    """Subtract the mean (mRMR) or the sum (MIFS, beta = 1) of the redundancies."""
+
+
+def _mi(
+    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
+) -> np.ndarray:
+    return mutual_information(raw, fitness, s, seed)
+
+
+def _mi_chance(
+    raw: np.ndarray,
+    fitness: np.ndarray,
+    s: WeightingSettings,
+    seed: int,
+    options: MiChanceOptions,
+) -> np.ndarray:
+    information = mutual_information(raw, fitness, s, seed)
+    chance = chance_information(raw, fitness, s, seed, options.shuffles)
+    return np.maximum(information - chance, 0.0)
+
+
+def _columns(
+    raw: np.ndarray, fitness: np.ndarray, statistic: Callable[..., Any]
+) -> np.ndarray:
+    out = np.zeros(raw.shape[1])
+    if np.ptp(fitness) == 0:
+        return out
+    for k in range(raw.shape[1]):
+        if np.ptp(raw[:, k]) > 0:
+            out[k] = abs(float(statistic(raw[:, k], fitness)))
+    return out
+
+
+def _pearson(
+    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
+) -> np.ndarray:
+    from scipy.stats import pearsonr
+
+    return _columns(raw, fitness, lambda x, y: pearsonr(x, y).statistic)
+
+
+def _spearman(
+    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
+) -> np.ndarray:
+    from scipy.stats import spearmanr
+
+    return _columns(raw, fitness, lambda x, y: spearmanr(x, y).statistic)
+
+
+def _dcor(
+    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
+) -> np.ndarray:
+    import dcor
+
+    return _columns(raw, fitness, dcor.distance_correlation)
+
+
+def feature_classes(
+    raw: np.ndarray, settings: WeightingSettings, seed: int
+) -> list[np.ndarray]:
+    """Each dimension's discretisation, as ``mi`` makes it."""
+    if settings.feature_discretisation == "kmeans":
+        return [
+            kmeans_classes(
+                raw[:, k], settings.feature_bins, seed, settings.kmeans_restarts
+            )
+            for k in range(raw.shape[1])
+        ]
+    return [
+        equal_width_classes(raw[:, k], settings.feature_bins)
+        for k in range(raw.shape[1])
+    ]
+
+
+def _mrmr(
+    raw: np.ndarray,
+    fitness: np.ndarray,
+    s: WeightingSettings,
+    seed: int,
+    options: MrmrOptions,
+) -> np.ndarray:
+    from sklearn.metrics import mutual_info_score
+
+    relevance = mutual_information(raw, fitness, s, seed)
+    classes = feature_classes(raw, s, seed)
+    d = raw.shape[1]
+    redundancy = np.zeros(d)  # sum of I(k; j) over the selected j
+    remaining = list(range(d))
+    score = np.zeros(d)
+    for chosen in range(d):
+        divisor = chosen if options.redundancy == "mean" and chosen else 1
+        candidates = relevance[remaining] - redundancy[remaining] / divisor
+        best = remaining[int(np.argmax(candidates))]
+        score[best] = candidates.max()
+        remaining.remove(best)
+        for k in remaining:
+            redundancy[k] += mutual_info_score(classes[k], classes[best]) / math.log(2)
+    return np.maximum(score, 0.0)
+
+
+@dataclass(frozen=True)
+class Measure:
+    """A registered relevance measure: its options and its function."""
+
+    options: type
+    compute: Callable[..., np.ndarray]
+    summary: str
+
+
+MEASURES: dict[str, Measure] = {
+    "mi": Measure(MiOptions, _mi, "mutual information with fitness, bits (paper)"),
+    "mi_chance": Measure(
+        MiChanceOptions, _mi_chance, "mutual information minus its chance level"
+    ),
+    "pearson": Measure(CorrelationOptions, _pearson, "|Pearson r| with fitness"),
+    "spearman": Measure(CorrelationOptions, _spearman, "|Spearman rho| with fitness"),
+    "dcor": Measure(CorrelationOptions, _dcor, "distance correlation with fitness"),
+    "mrmr": Measure(MrmrOptions, _mrmr, "MI less redundancy with selected dimensions"),
+}
+"""Every relevance measure, by name."""
+
+
+@dataclass(frozen=True)
+class RelevanceSpec:
+    """A declared relevance measure and its options."""
+
+    name: str
+    options: Any
+
+    def to_plain(self) -> str | dict[str, Any]:
+        """The declaration, YAML-ready: the name alone for default options."""
+        changed = changed_options(self.options)
+        return {self.name: changed} if changed else self.name
+
+    def compute(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        settings: WeightingSettings,
+        rng: np.random.Generator,
+    ) -> np.ndarray:
+        """(D,) relevance of every dimension of ``raw`` (n, D) to ``fitness`` (n,),
+        drawing one integer from ``rng``."""
+        seed = int(rng.integers(SEED_BOUND))
+        raw, fitness = _validated(raw, fitness)
+        # One thread: k-means on a few hundred values gains nothing from more, loses
+        # to thread start-up on a busy machine, and the result cannot then depend on
+        # the machine's core count.
+        with threadpool_limits(1):
+            values = MEASURES[self.name].compute(
+                raw, fitness, settings, seed, self.options
+            )
+        return np.asarray(values, dtype=np.float64)
+
+
+def parse_relevance(declaration: Any, where: str = "relevance") -> RelevanceSpec:
+    """A spec from ``name`` or ``{name: {option: value}}``.
+
+    Raises:
+        ConfigError: Unknown measure or bad options, naming ``where``.
+    """
+    if isinstance(declaration, RelevanceSpec):
+        return declaration
+    options = {name: m.options for name, m in MEASURES.items()}
+    return RelevanceSpec(
+        *declared_part(declaration, options, "relevance measure", where)
+    )
