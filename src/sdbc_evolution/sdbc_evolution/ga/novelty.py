@@ -20,8 +20,47 @@ per pair and the 2 ms difference is under 0.1% of a generation, so cdist it is.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial.distance import cdist
+
+from sdbc_evolution.sdbc.settings import ConfigError
+
+
+def _check(ok: bool, key: str, message: str) -> None:
+    if not ok:
+        raise ConfigError(f"{key}: {message}")
+
+
+@dataclass(frozen=True)
+class NoveltyConfig:
+    """The novelty metric, its archive and the (fitness, novelty) ranking."""
+
+    k: int = 15
+    """Nearest neighbours averaged by the novelty metric."""
+    archive_probability: float = 0.03
+    """Chance that each evaluated individual enters the archive."""
+    archive_size: int = 1000
+    """Most archive entries; a random one is replaced when full."""
+    tie_break: str = "crowding"
+    """Order inside a non-dominated front: "crowding" (NSGA-II crowding distance,
+    the paper) or "fitness" (fitness normalised within the front, the authors'
+    code)."""
+
+    def __post_init__(self) -> None:
+        _check(self.k >= 1, "novelty.k", "must be at least 1")
+        _check(
+            0.0 <= self.archive_probability <= 1.0,
+            "novelty.archive_probability",
+            "must be in [0, 1]",
+        )
+        _check(self.archive_size >= 0, "novelty.archive_size", "must be >= 0")
+        _check(
+            self.tie_break in ("crowding", "fitness"),
+            "novelty.tie_break",
+            "must be 'crowding' or 'fitness'",
+        )
 
 
 def novelty_scores(population: np.ndarray, archive: np.ndarray, k: int) -> np.ndarray:
@@ -52,12 +91,23 @@ def novelty_scores(population: np.ndarray, archive: np.ndarray, k: int) -> np.nd
     if not (np.isfinite(population).all() and np.isfinite(archive).all()):
         raise ValueError("behaviour vectors contain NaN or infinite values")
     n = population.shape[0]
-    neighbours = n - 1 + archive.shape[0]
-    if neighbours == 0:
+    distances, k_used = neighbour_distances(population, archive, k)
+    if k_used == 0:
         return np.zeros(n)
-    k_used = min(k, neighbours)
+    nearest = np.partition(distances, k_used - 1, axis=1)[:, :k_used]
+    return nearest.mean(axis=1)
+
+
+def neighbour_distances(
+    population: np.ndarray, archive: np.ndarray, k: int
+) -> tuple[np.ndarray, int]:
+    """Distances (N, N + A) from each individual to the population then the
+    archive, itself at infinity, and how many neighbours k counts (0: none)."""
+    n = population.shape[0]
+    k_used = min(k, n - 1 + archive.shape[0])
+    if k_used == 0:
+        return np.zeros((n, 0)), 0
     distances = cdist(population, np.concatenate([population, archive]))
     # An individual is not its own neighbour, whatever its clones do.
     distances[np.arange(n), np.arange(n)] = np.inf
-    nearest = np.partition(distances, k_used - 1, axis=1)[:, :k_used]
-    return nearest.mean(axis=1)
+    return distances, k_used
