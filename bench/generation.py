@@ -33,7 +33,7 @@ from sdbc_evolution.run.config import (
     EvaluationConfig,
     ExperimentConfig,
     GaConfig,
-    Treatment,
+    load_treatment,
 )
 from sdbc_evolution.run.evaluators import LocalEvaluator
 from sdbc_evolution.run.experiment import Experiment, task_spec
@@ -50,7 +50,7 @@ def fill_archive(experiment: Experiment, rng: np.random.Generator) -> None:
     last = experiment.results.individuals_path(experiment.state.generation - 1)
     with np.load(last) as data:
         pool = data["sdbc"].astype(np.float64)
-        if experiment.config.treatment is Treatment.NS_TS:
+        if experiment.config.treatment.name == "ns-ts":
             pool = data["characterisation"].astype(np.float64)
         fitness = data["fitness"]
     capacity = experiment.config.novelty.archive_size
@@ -69,7 +69,7 @@ def bench_task(task: str, args: argparse.Namespace) -> tuple[float, float]:
     """(seconds per generation, share outside the simulator) of one task."""
     config = ExperimentConfig(
         task=task,
-        treatment=Treatment(args.treatment),
+        treatment=load_treatment(args.treatment),
         generations=args.generations + 1,
         ga=GaConfig(population_size=args.population),
         evaluation=EvaluationConfig(trials=args.trials),
@@ -110,7 +110,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--task", action="append", help="task (repeatable)")
     parser.add_argument(
-        "--treatment", default="ns-sd+", choices=[t.value for t in Treatment]
+        "--treatment", default="ns-sd+", help="a paper treatment or a YAML file"
     )
     parser.add_argument(
         "--generations", type=int, default=2, help="timed generations per task"

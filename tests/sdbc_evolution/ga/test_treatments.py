@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from sdbc_evolution.ga.archive import NoveltyArchive
-from sdbc_evolution.ga.novelty import novelty_scores
+from sdbc_evolution.ga.novelty import NoveltyConfig, novelty_scores
 from sdbc_evolution.ga.rankings.nsga2 import nsga2_order
-from sdbc_evolution.ga.treatments import score_generation
-from sdbc_evolution.run.config import NoveltyConfig, Treatment
+from sdbc_evolution.ga.treatments import PRESETS, TreatmentSpec, score_generation
 from sdbc_evolution.run.evaluators import Evaluation
 from sdbc_evolution.sdbc.standardise import StandardisationSettings, standardise
 from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information_weights
@@ -27,7 +26,7 @@ def evaluation(n: int = 8, seed: int = 0) -> Evaluation:
 
 
 def score(
-    treatment: Treatment,
+    treatment: TreatmentSpec,
     e: Evaluation,
     archive: NoveltyArchive,
     weights=None,
@@ -57,7 +56,7 @@ def empty_archive() -> NoveltyArchive:
 def test_fit_orders_by_fitness_and_touches_nothing_else() -> None:
     e = evaluation()
     archive = empty_archive()
-    scores, rng = score(Treatment.FIT, e, archive)
+    scores, rng = score(PRESETS["fit"], e, archive)
     assert scores.order.tolist() == np.argsort(-e.fitness).tolist()
     assert np.isnan(scores.novelty).all() and scores.weights is None
     assert len(archive) == 0 and not scores.archived.any()
@@ -70,7 +69,7 @@ def test_ns_ts_uses_the_task_characterisation_as_it_is() -> None:
     archive = empty_archive()
     archive.offer(np.full((2, 3), 0.5), np.zeros(2), 0, np.random.default_rng(1))
     before = archive.behaviours.copy()
-    scores, _ = score(Treatment.NS_TS, e, archive)
+    scores, _ = score(PRESETS["ns-ts"], e, archive)
     np.testing.assert_array_equal(
         scores.novelty, novelty_scores(e.characterisation, before, NOVELTY.k)
     )
@@ -87,7 +86,7 @@ def test_ns_sd_standardises_against_population_and_archive() -> None:
     archive = empty_archive()
     archive.offer(evaluation(seed=9).sdbc, np.zeros(8), 0, np.random.default_rng(2))
     before = archive.behaviours.copy()
-    scores, _ = score(Treatment.NS_SD, e, archive)
+    scores, _ = score(PRESETS["ns-sd"], e, archive)
     population_z, archive_z = standardise(e.sdbc, before)
     np.testing.assert_array_equal(
         scores.novelty, novelty_scores(population_z, archive_z, NOVELTY.k)
@@ -99,7 +98,7 @@ def test_ns_sd_standardises_against_population_and_archive() -> None:
 
 def test_ns_sd_plus_weights_the_standardised_dimensions() -> None:
     e = evaluation()
-    scores, _ = score(Treatment.NS_SD_PLUS, e, empty_archive())
+    scores, _ = score(PRESETS["ns-sd+"], e, empty_archive())
     seed = int(np.random.default_rng(5).integers(2**31 - 1))
     weights = mutual_information_weights(e.sdbc, e.fitness, WeightingSettings(), seed)
     np.testing.assert_array_equal(scores.weights, weights)
@@ -115,7 +114,7 @@ def test_ns_sd_plus_keeps_its_weights_between_updates() -> None:
     every_3 = WeightingSettings(update_every=3)
     old = np.array([1.0, 2.0, 3.0, 4.0])
     kept, rng = score(
-        Treatment.NS_SD_PLUS,
+        PRESETS["ns-sd+"],
         e,
         empty_archive(),
         weights=old,
@@ -124,7 +123,7 @@ def test_ns_sd_plus_keeps_its_weights_between_updates() -> None:
     )
     np.testing.assert_array_equal(kept.weights, old)
     renewed, _ = score(
-        Treatment.NS_SD_PLUS,
+        PRESETS["ns-sd+"],
         e,
         empty_archive(),
         weights=old,
@@ -133,7 +132,7 @@ def test_ns_sd_plus_keeps_its_weights_between_updates() -> None:
     )
     assert not np.array_equal(renewed.weights, old)
     first, _ = score(
-        Treatment.NS_SD_PLUS,
+        PRESETS["ns-sd+"],
         e,
         empty_archive(),
         weights=None,
@@ -143,8 +142,10 @@ def test_ns_sd_plus_keeps_its_weights_between_updates() -> None:
     assert first.weights is not None
 
 
-@pytest.mark.parametrize("treatment", list(Treatment))
-def test_scores_are_a_function_of_the_generator_state(treatment: Treatment) -> None:
+@pytest.mark.parametrize("treatment", list(PRESETS.values()))
+def test_scores_are_a_function_of_the_generator_state(
+    treatment: TreatmentSpec,
+) -> None:
     a, _ = score(treatment, evaluation(), empty_archive())
     b, _ = score(treatment, evaluation(), empty_archive())
     assert a.order.tolist() == b.order.tolist()

@@ -11,13 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from evolution_helpers import TOY_INFO, ToyEvaluator, assert_same_run, snapshot
+from sdbc_evolution.ga.treatments import PAPER_TREATMENTS
 from sdbc_evolution.run import checkpoint as checkpoint_module
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import Treatment, config_from_dict
+from sdbc_evolution.run.config import config_from_dict
 from sdbc_evolution.run.experiment import Experiment, ExperimentError
 from sdbc_evolution.run.results import read_generations, read_individuals
 
-TREATMENTS = [t.value for t in Treatment]
+TREATMENTS = list(PAPER_TREATMENTS)
 
 
 def small_config(treatment: str = "ns-ts", generations: int = 5, **sections):

@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from sdbc_evolution.ga.treatments import PRESETS
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import ConfigError, Treatment, quickstart_config
+from sdbc_evolution.run.config import ConfigError, quickstart_config
 from sdbc_evolution.run.request import ConfigRequest, default_out, resolve_config
 
 CONFIGS = Path(__file__).resolve().parents[3] / "configs"
@@ -31,7 +32,7 @@ def test_overrides_go_on_top_of_the_file() -> None:
     )
     assert (config.task, config.treatment, config.generations, config.seed) == (
         "predator_prey",
-        Treatment.FIT,
+        PRESETS["fit"],
         3,
         9,
     )

@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.sdbc.characterisation import dimension_names
 from sdbc_evolution.study.analysis import FIGURES_DIR, REPORT_FILE, TABLES_DIR
@@ -79,9 +78,9 @@ def test_curves_have_one_point_per_generation_and_bests_match_runs(
             values = np.array(
                 [read_generations(r.path)["reevaluated_fitness"] for r in runs]
             )
-            mean = [float(r[f"{treatment.value} mean"]) for r in rows]
+            mean = [float(r[f"{treatment.name} mean"]) for r in rows]
             np.testing.assert_allclose(mean, values.mean(axis=0), rtol=1e-12)
-            assert {int(r[f"{treatment.value} n"]) for r in rows} == {SMOKE.runs}
+            assert {int(r[f"{treatment.name} n"]) for r in rows} == {SMOKE.runs}
         bests = read_csv(smoke / "report" / TABLES_DIR / f"bests_{task}.csv")
         assert len(bests) == SMOKE.runs * len(SMOKE.treatments)
         for row in bests:
@@ -122,7 +121,7 @@ def test_relevance_names_are_the_characterisation_dimensions(smoke: Path) -> Non
         )
         # MI = weight - delta, averaged over generations, then over runs.
         per_run = []
-        for run in study.of(task, Treatment.NS_SD_PLUS):
+        for run in study.of(task, "ns-sd+"):
             columns = read_generations(run.path)
             per_run.append({n: np.mean(columns[f"weight:{n}"]) - 0.25 for n in names})
         for row in rows:
@@ -136,7 +135,7 @@ def test_som_shares_of_every_run_sum_to_one(smoke: Path) -> None:
     for task in TASKS:
         with np.load(smoke / "report" / TABLES_DIR / f"exploration_{task}.npz") as data:
             treatments = list(data["treatments"])
-            assert treatments == [t.value for t in SMOKE.treatments]
+            assert treatments == [t.name for t in SMOKE.treatments]
             units = 20 * 20
             for k, treatment in enumerate(treatments):
                 shares = data[f"shares_{treatment}"]

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from sdbc_evolution.run.config import ExperimentConfig, Treatment
+from sdbc_evolution.ga.treatments import PAPER_TREATMENTS, PRESETS
+from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.study.paper import PAPER_TASKS
 from sdbc_evolution.study.presets import (
     PRESET_NAMES,
@@ -27,7 +28,7 @@ def test_shipped_presets_load_and_hold_every_task_and_treatment(name: str) -> No
     assert set(preset.tasks) == (
         beyond if name == "local_new_tasks" else set(PAPER_TASKS)
     )
-    assert set(preset.treatments) == set(Treatment)
+    assert [t.name for t in preset.treatments] == list(PAPER_TREATMENTS)
     assert preset.description
 
 
@@ -35,10 +36,10 @@ def test_paper_preset_is_spec_settings() -> None:
     paper = load_preset("paper")
     assert paper.runs == 20
     for task, generations in zip(PAPER_TASKS, (500, 750, 750), strict=True):
-        for treatment in Treatment:
+        for treatment in PAPER_TREATMENTS:
             config = paper.experiment_config(task, treatment, 7)
             assert config == ExperimentConfig(
-                task=task, treatment=treatment, seed=7, generations=generations
+                task=task, treatment=PRESETS[treatment], seed=7, generations=generations
             )
 
 
@@ -56,11 +57,11 @@ def test_preset_round_trips_through_yaml(tmp_path: Path) -> None:
 
 def test_run_configuration_takes_task_generations_and_task_settings() -> None:
     preset = preset_from_dict(TINY)
-    config = preset.experiment_config("gate_escape", Treatment.FIT, 3)
+    config = preset.experiment_config("gate_escape", "fit", 3)
     assert config.generations == 2
     assert config.task_config == {"max_steps": 60}
     assert config.ga.population_size == 6
-    assert config.treatment is Treatment.FIT and config.seed == 3
+    assert config.treatment is PRESETS["fit"] and config.seed == 3
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.run.evaluators import LocalEvaluator
 from sdbc_evolution.run.experiment import Experiment, task_spec
 from sdbc_evolution.run.lock import RunLock
@@ -73,9 +72,7 @@ def test_plan_interleaves_treatments_and_seeds_depend_on_names(
     )
     again = {s.name: s.config.seed for s in study_plan(bigger, tmp_path)}
     assert all(again[s.name] == s.config.seed for s in plan)
-    assert run_seed(5, "gate_escape", Treatment.FIT, 0) != run_seed(
-        6, "gate_escape", Treatment.FIT, 0
-    )
+    assert run_seed(5, "gate_escape", "fit", 0) != run_seed(6, "gate_escape", "fit", 0)
     with pytest.raises(ValueError, match="not in preset"):
         study_plan(tiny_preset, tmp_path, ("predator_prey",))
 
@@ -88,7 +85,7 @@ def test_shards_partition_the_plan_and_mix_treatments(
     assert sorted(s.name for shard in shards for s in shard) == sorted(
         s.name for s in plan
     )
-    assert [s.treatment for s in shards[0]] == [Treatment.FIT, Treatment.FIT]
+    assert [s.treatment.name for s in shards[0]] == ["fit", "fit"]
     assert Shard.parse("1/2") == Shard(1, 2) and str(Shard(1, 2)) == "1/2"
     for bad in ("2/2", "-1/2", "0/0", "1", "a/b", "1/2/3", " 1/2"):
         with pytest.raises(ValueError, match="shard"):

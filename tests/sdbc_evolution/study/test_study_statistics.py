@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.run.config import Treatment
+from sdbc_evolution.ga.treatments import PAPER_TREATMENTS
 from sdbc_evolution.study.claims import (
     Verdict,
     above,
@@ -22,12 +22,7 @@ from sdbc_evolution.study.exploration import (
 from sdbc_evolution.study.presets import StudyPreset
 from sdbc_evolution.study.quality import mann_whitney, pairwise_tests
 
-FIT, TS, SD, PLUS = (
-    Treatment.FIT,
-    Treatment.NS_TS,
-    Treatment.NS_SD,
-    Treatment.NS_SD_PLUS,
-)
+FIT, TS, SD, PLUS = PAPER_TREATMENTS
 
 
 def test_mann_whitney_on_separated_and_tied_samples() -> None:
@@ -43,7 +38,7 @@ def test_mann_whitney_on_separated_and_tied_samples() -> None:
 
 
 def test_pairwise_tests_cover_every_pair_in_order() -> None:
-    bests = {t: np.arange(3.0) + i for i, t in enumerate(Treatment)}
+    bests = {t: np.arange(3.0) + i for i, t in enumerate(PAPER_TREATMENTS)}
     tests = pairwise_tests("t", bests)
     assert [(t.a, t.b) for t in tests] == [
         (FIT, TS), (FIT, SD), (FIT, PLUS), (TS, SD), (TS, PLUS), (SD, PLUS),

@@ -20,47 +20,27 @@ per pair and the 2 ms difference is under 0.1% of a generation, so cdist it is.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from scipy.spatial.distance import cdist
-
-from sdbc_evolution.sdbc.settings import ConfigError
-
-
-def _check(ok: bool, key: str, message: str) -> None:
-    if not ok:
-        raise ConfigError(f"{key}: {message}")
+from sdbc_sim.settings import Fraction, NonNegativeInt, PositiveInt, settings
 
 
-@dataclass(frozen=True)
+@settings
 class NoveltyConfig:
     """The novelty metric, its archive and the (fitness, novelty) ranking."""
 
-    k: int = 15
+    k: PositiveInt = 15
     """Nearest neighbours averaged by the novelty metric."""
-    archive_probability: float = 0.03
+    archive_probability: Fraction = 0.03
     """Chance that each evaluated individual enters the archive."""
-    archive_size: int = 1000
+    archive_size: NonNegativeInt = 1000
     """Most archive entries; a random one is replaced when full."""
-    tie_break: str = "crowding"
+    tie_break: Literal["crowding", "fitness"] = "crowding"
     """Order inside a non-dominated front: "crowding" (NSGA-II crowding distance,
     the paper) or "fitness" (fitness normalised within the front, the authors'
     code)."""
-
-    def __post_init__(self) -> None:
-        _check(self.k >= 1, "novelty.k", "must be at least 1")
-        _check(
-            0.0 <= self.archive_probability <= 1.0,
-            "novelty.archive_probability",
-            "must be in [0, 1]",
-        )
-        _check(self.archive_size >= 0, "novelty.archive_size", "must be >= 0")
-        _check(
-            self.tie_break in ("crowding", "fitness"),
-            "novelty.tie_break",
-            "must be 'crowding' or 'fitness'",
-        )
 
 
 def novelty_scores(population: np.ndarray, archive: np.ndarray, k: int) -> np.ndarray:

@@ -1,41 +1,258 @@
-"""The four treatments: how a generation's evaluation becomes a ranking order.
+"""Treatments, declared: which characterisation, which transforms, which ranking.
 
-- **Fit**: order by fitness alone; no novelty, no archive.
-- **NS-TS**: novelty on the task-specific characterisation (each value already in
-  [0, 1], used as it is, as in the authors' code).
-- **NS-SD**: novelty on the SDBC, z-scored against population + archive and clipped
-  to +-clip (unweighted; ``sdbc_evolution.sdbc.standardise``).
-- **NS-SD+**: as NS-SD, each dimension k multiplied by w_k = delta + I(F; k), the
-  mutual information between that raw feature and fitness in the current
-  population, recomputed every ``weighting.update_every`` generations.
+A treatment turns a generation's evaluation into the order selection reads:
 
-Every novelty treatment then scores novelty against population + archive (k nearest
-neighbours), offers the generation to the archive (raw vectors), and ranks on
-(fitness, novelty) by non-dominated front and crowding distance (NSGA-II).
+    characterisation -> transforms -> novelty (k nearest neighbours, population +
+    archive) -> archive update -> ranking
+
+and is declared in YAML, as a preset's name or a mapping::
+
+    treatment:
+      name: ns-sd+chance                      # names its runs and study rows
+      characterisation: sdbc                  # or {sdbc: {aggregation: {frames: 5}}},
+                                              # task, state_count, ... or none
+      transforms: [standardise, {weight: {relevance: mi_chance}}]
+      ranking: nsga2                          # or {nslc: {k: 15}}, fitness, ...
+
+The parts come from their registries (:mod:`sdbc_evolution.characterise.registry`,
+:mod:`sdbc_evolution.transforms.pipeline`, :mod:`sdbc_evolution.relevance.measures`,
+:mod:`sdbc_evolution.ga.rankings`). The paper's four are presets (:data:`PRESETS`)
+and keep their names:
+
+- **fit**: no characterisation, ranked by fitness; no novelty, no archive.
+- **ns-ts**: the task-specific characterisation as it is, NSGA-II on (fitness,
+  novelty).
+- **ns-sd**: the SDBC, standardised, NSGA-II.
+- **ns-sd+**: the SDBC, standardised and weighted by mutual information, NSGA-II.
 
 One generation, in the order the GA's generator is used (the order is part of the
-bit-identical resume contract): [NS-SD+ on a weight generation: one integer seeds
-the k-means of the fitness discretisation], then the archive's draws.
+bit-identical resume contract): [a weight update: one integer for the relevance
+measure], then the archive's draws. Rankings draw nothing.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
+from sdbc_evolution.characterise.evaluation import Evaluation
+from sdbc_evolution.characterise.registry import (
+    PAPER_SDBC,
+    TASK_SPECIFIC,
+    CharacterisationSpec,
+)
+from sdbc_evolution.characterise.registry import parse as parse_characterisation
 from sdbc_evolution.ga.archive import NoveltyArchive
-from sdbc_evolution.ga.novelty import novelty_scores
-from sdbc_evolution.ga.rankings.nsga2 import nsga2_order
-from sdbc_evolution.ga.selection import fitness_order
-from sdbc_evolution.run.config import NoveltyConfig, Treatment
-from sdbc_evolution.run.evaluators import Evaluation
-from sdbc_evolution.sdbc.standardise import StandardisationSettings, standardise
-from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information_weights
+from sdbc_evolution.ga.novelty import NoveltyConfig, novelty_scores
+from sdbc_evolution.ga.rankings import NoOptions, RankingSpec, parse_ranking
+from sdbc_evolution.sdbc.settings import ConfigError
+from sdbc_evolution.sdbc.standardise import StandardisationSettings
+from sdbc_evolution.sdbc.weighting import WeightingSettings
+from sdbc_evolution.transforms.pipeline import (
+    StandardiseOptions,
+    TransformSpec,
+    WeightOptions,
+    apply_transforms,
+    parse_transforms,
+)
 
-SEED_BOUND = 2**31 - 1
-"""Seeds handed to scikit-learn must fit a 32-bit signed integer."""
+NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
+"""Treatment names: they name run directories (``+`` becomes ``-plus``)."""
+KEYS = ("name", "characterisation", "transforms", "ranking")
+"""Keys of a declared treatment."""
+
+
+@dataclass(frozen=True)
+class TreatmentSpec:
+    """A declared treatment.
+
+    Attributes:
+        name: Names its runs, directories and rows in a study.
+        characterisation: The behaviour it compares, or None (no novelty).
+        transforms: Applied in order to the raw vectors before novelty.
+        ranking: How fitness and novelty become an order.
+    """
+
+    name: str
+    characterisation: CharacterisationSpec | None
+    transforms: tuple[TransformSpec, ...]
+    ranking: RankingSpec
+
+    def __post_init__(self) -> None:
+        where = f"treatment {self.name!r}"
+        if not isinstance(self.name, str) or not NAME_PATTERN.match(self.name):
+            raise ConfigError(
+                f"treatment name {self.name!r}: letters, digits and . _ + - only, "
+                "starting with a letter or digit"
+            )
+        if self.characterisation is None:
+            if self.ranking.uses_novelty:
+                raise ConfigError(
+                    f"{where}: ranking {self.ranking.name!r} scores novelty, which "
+                    "needs a characterisation"
+                )
+            if self.transforms:
+                raise ConfigError(
+                    f"{where}: transforms need a characterisation to transform"
+                )
+        elif not self.ranking.uses_novelty:
+            raise ConfigError(
+                f"{where}: ranking {self.ranking.name!r} ignores novelty; declare "
+                "characterisation: none"
+            )
+        if self.name in PRESET_DECLARATIONS and self.to_mapping() != _preset_mapping(
+            self.name
+        ):
+            raise ConfigError(
+                f"{where}: the name of a paper treatment; choose another name for "
+                "a different declaration"
+            )
+
+    @property
+    def weights(self) -> bool:
+        """Whether a weight transform runs (the run then records weights)."""
+        return any(t.name == "weight" for t in self.transforms)
+
+    @property
+    def is_paper(self) -> bool:
+        """One of the paper's four treatments."""
+        return self.name in PRESET_DECLARATIONS
+
+    @property
+    def directory(self) -> str:
+        """Its directory name in a study (no ``+`` in paths)."""
+        return treatment_directory(self.name)
+
+    def to_mapping(self) -> dict[str, Any]:
+        """The full declaration as plain data."""
+        return {
+            "name": self.name,
+            "characterisation": None
+            if self.characterisation is None
+            else self.characterisation.to_plain(),
+            "transforms": [t.to_plain() for t in self.transforms],
+            "ranking": self.ranking.to_plain(),
+        }
+
+    def to_plain(self) -> str | dict[str, Any]:
+        """YAML-ready: a preset's name, or the declaration."""
+        return self.name if self.is_paper else self.to_mapping()
+
+    @classmethod
+    def from_plain(cls, value: Any, where: str = "treatment") -> TreatmentSpec:
+        """See :func:`parse_treatment`."""
+        return parse_treatment(value, where)
+
+
+PRESET_DECLARATIONS: dict[str, dict[str, Any]] = {
+    "fit": {"characterisation": None, "transforms": [], "ranking": "fitness"},
+    "ns-ts": {"characterisation": "task", "transforms": [], "ranking": "nsga2"},
+    "ns-sd": {
+        "characterisation": "sdbc",
+        "transforms": ["standardise"],
+        "ranking": "nsga2",
+    },
+    "ns-sd+": {
+        "characterisation": "sdbc",
+        "transforms": ["standardise", "weight"],
+        "ranking": "nsga2",
+    },
+}
+"""The paper's four treatments, as declarations."""
+PAPER_TREATMENTS = tuple(PRESET_DECLARATIONS)
+"""Their names, in the paper's order."""
+PAPER_LABELS = {"fit": "Fit", "ns-ts": "NS-TS", "ns-sd": "NS-SD", "ns-sd+": "NS-SD+"}
+"""How the paper writes its treatments' names."""
+
+
+def label(name: str) -> str:
+    """How reports write a treatment's name: the paper's spelling for its four,
+    the declared name for any other."""
+    return PAPER_LABELS.get(name, name)
+
+
+def treatment_directory(name: str) -> str:
+    """A treatment's directory name in a study (no ``+`` in paths)."""
+    return name.replace("+", "-plus")
+
+
+def _preset_mapping(name: str) -> dict[str, Any]:
+    return {"name": name, **PRESET_DECLARATIONS[name]}
+
+
+def _build(name: str, data: dict[str, Any], where: str) -> TreatmentSpec:
+    characterisation = data.get("characterisation")
+    return TreatmentSpec(
+        name=name,
+        characterisation=None
+        if characterisation in (None, "none")
+        else parse_characterisation(characterisation, f"{where}.characterisation"),
+        transforms=parse_transforms(
+            data.get("transforms") or [], f"{where}.transforms"
+        ),
+        ranking=parse_ranking(data.get("ranking", "nsga2"), f"{where}.ranking"),
+    )
+
+
+PRESETS: dict[str, TreatmentSpec] = {}
+
+
+def parse_treatment(value: Any, where: str = "treatment") -> TreatmentSpec:
+    """A treatment from a preset's name or a declaration mapping.
+
+    Raises:
+        ConfigError: Unknown preset, unknown keys, or a bad part, naming it.
+    """
+    if isinstance(value, TreatmentSpec):
+        return value
+    if isinstance(value, str):
+        if value not in PRESET_DECLARATIONS:
+            raise ConfigError(
+                f"{where}: {value!r} is not a preset ({list(PRESET_DECLARATIONS)}); "
+                "declare other treatments as a mapping with keys "
+                f"{list(KEYS)}"
+            )
+        return PRESETS[value]
+    if not isinstance(value, dict):
+        raise ConfigError(
+            f"{where}: expected a preset's name or a mapping, got {value!r}"
+        )
+    unknown = sorted(str(k) for k in value if k not in KEYS)
+    if unknown:
+        raise ConfigError(
+            f"{where}: unknown key(s) {unknown}; a treatment has {list(KEYS)}"
+        )
+    if "name" not in value:
+        raise ConfigError(f"{where}.name: a declared treatment needs a name")
+    name = value["name"]
+    try:
+        return _build(name, value, f"{where}")
+    except ConfigError as error:
+        message = str(error)
+        raise ConfigError(
+            message if message.startswith(where) else f"{where}: {message}"
+        ) from None
+
+
+for _name, _declaration in PRESET_DECLARATIONS.items():
+    PRESETS[_name] = TreatmentSpec(
+        name=_name,
+        characterisation=None
+        if _declaration["characterisation"] is None
+        else {"task": TASK_SPECIFIC, "sdbc": PAPER_SDBC}[
+            _declaration["characterisation"]
+        ],
+        transforms=tuple(
+            TransformSpec(
+                t, StandardiseOptions() if t == "standardise" else WeightOptions()
+            )
+            for t in _declaration["transforms"]
+        ),
+        ranking=RankingSpec(_declaration["ranking"], NoOptions()),
+    )
 
 
 @dataclass
@@ -44,10 +261,11 @@ class GenerationScores:
 
     Attributes:
         order: (N,) individual indices, best first; selection reads only this.
-        novelty: (N,) novelty scores; NaN for Fit.
-        front: (N,) non-dominated front of each individual; 0 for Fit.
-        weights: (D,) the SDBC weights in force (NS-SD+); None otherwise.
+        novelty: (N,) novelty scores; NaN without a characterisation.
+        front: (N,) front of each individual (0 where the ranking has none).
+        weights: (D,) the weights in force (a weight transform); None otherwise.
         archived: (N,) bool, which individuals entered the archive.
+        relevance: (D,) the relevance computed this generation, or None.
     """
 
     order: np.ndarray
@@ -55,21 +273,20 @@ class GenerationScores:
     front: np.ndarray
     weights: np.ndarray | None
     archived: np.ndarray
+    relevance: np.ndarray | None = None
 
 
 def behaviour_vectors(
-    treatment: Treatment, evaluation: Evaluation
+    treatment: TreatmentSpec, evaluation: Evaluation
 ) -> np.ndarray | None:
-    """The raw behaviour vectors a treatment compares (None for Fit)."""
-    if treatment is Treatment.FIT:
+    """The raw behaviour vectors a treatment compares (None without any)."""
+    if treatment.characterisation is None:
         return None
-    if treatment is Treatment.NS_TS:
-        return evaluation.characterisation
-    return evaluation.sdbc
+    return evaluation.behaviour(treatment.characterisation.key)
 
 
 def score_generation(
-    treatment: Treatment,
+    treatment: TreatmentSpec,
     evaluation: Evaluation,
     archive: NoveltyArchive,
     weights: np.ndarray | None,
@@ -82,65 +299,58 @@ def score_generation(
     """Scores and ranks one evaluated generation, updating the archive.
 
     Args:
-        treatment: Which treatment.
+        treatment: The treatment.
         evaluation: The generation's evaluation.
         archive: The novelty archive (changed in place).
-        weights: NS-SD+ weights in force from an earlier generation, or None.
+        weights: Weights in force from an earlier generation, or None.
         generation: Index of this generation (0-based).
         rng: The GA's generator.
         novelty: Novelty settings.
-        standardisation: SDBC standardisation settings (NS-SD, NS-SD+).
-        weighting: NS-SD+ weighting settings.
+        standardisation: Standardisation settings (``standardise``).
+        weighting: Weighting settings (``weight``).
     """
     fitness = evaluation.fitness
     n = fitness.shape[0]
     raw = behaviour_vectors(treatment, evaluation)
     if raw is None:
+        order, front = treatment.ranking.rank(
+            fitness, None, None, None, None, novelty.k, novelty.tie_break
+        )
         return GenerationScores(
-            order=fitness_order(fitness),
+            order=order,
             novelty=np.full(n, np.nan),
-            front=np.zeros(n, dtype=np.int64),
+            front=front,
             weights=None,
             archived=np.zeros(n, dtype=bool),
         )
-    if treatment is Treatment.NS_TS:
-        population, archived_vectors = raw, archive.behaviours
-    else:
-        population, archived_vectors = standardise(
-            raw, archive.behaviours, standardisation
-        )
-    if treatment is Treatment.NS_SD_PLUS:
-        if weights is None or generation % weighting.update_every == 0:
-            weights = sdbc_weights(raw, fitness, weighting, rng)
-        population = population * weights
-        archived_vectors = archived_vectors * weights
-    else:
-        weights = None
-    scores = novelty_scores(population, archived_vectors, novelty.k)
+    transformed = apply_transforms(
+        treatment.transforms,
+        raw,
+        archive.behaviours,
+        fitness,
+        weights,
+        generation,
+        rng,
+        standardisation,
+        weighting,
+    )
+    scores = novelty_scores(transformed.population, transformed.archive, novelty.k)
+    archive_fitness = archive.fitness.copy()
     archived = archive.offer(raw, fitness, generation, rng)
-    order, front, _ = nsga2_order(
-        np.column_stack([fitness, scores]), tie_break=novelty.tie_break
+    order, front = treatment.ranking.rank(
+        fitness,
+        scores,
+        transformed.population,
+        transformed.archive,
+        archive_fitness,
+        novelty.k,
+        novelty.tie_break,
     )
     return GenerationScores(
-        order=order, novelty=scores, front=front, weights=weights, archived=archived
+        order=order,
+        novelty=scores,
+        front=front,
+        weights=transformed.weights,
+        archived=archived,
+        relevance=transformed.relevance,
     )
-
-
-def sdbc_weights(
-    raw: np.ndarray,
-    fitness: np.ndarray,
-    weighting: WeightingSettings,
-    rng: np.random.Generator,
-) -> np.ndarray:
-    """NS-SD+ weights w_k = delta + I(F; k) on the current population.
-
-    Draws exactly one integer from ``rng`` to seed the k-means discretisation,
-    whether or not k-means ends up running.
-    """
-    seed = int(rng.integers(SEED_BOUND))
-    # One thread: k-means on a few hundred values gains nothing from more, loses
-    # to thread start-up on a busy machine (100 vs 380 ms measured under load), and
-    # the weights cannot then depend on the machine's core count.
-    with threadpool_limits(1):
-        weights = mutual_information_weights(raw, fitness, weighting, seed)
-    return np.asarray(weights, dtype=np.float64)

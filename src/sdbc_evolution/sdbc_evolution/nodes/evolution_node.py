@@ -316,7 +316,7 @@ class EvolutionNode(Node):
                         self.config, self.out, evaluator, info
                     )
                 self.get_logger().info(
-                    f"{self.config.task} {self.config.treatment.value}: "
+                    f"{self.config.task} {self.config.treatment.name}: "
                     f"{experiment.generations} generations into {self.out} "
                     f"({self.evaluator_name} evaluation)"
                 )
@@ -350,7 +350,7 @@ class EvolutionNode(Node):
             experiment=self.out.name,
             task=self.config.task,
             treatment=TREATMENT_NAMES.get(
-                self.config.treatment.value, self.config.treatment.value
+                self.config.treatment.name, self.config.treatment.name
             ),
             best_fitness=record.best_fitness,
             mean_fitness=record.mean_fitness,

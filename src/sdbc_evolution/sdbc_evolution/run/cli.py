@@ -12,6 +12,7 @@ Examples::
     sdbc-evolve --task my_tasks.py:Beacon --generations 20
     sdbc-evolve --list-tasks
     sdbc-evolve --config configs/paper/gate_escape.yaml --treatment ns-ts --out runs/a
+    sdbc-evolve --task predator_prey --treatment configs/treatments/nslc-sdbc.yaml
     sdbc-evolve --resume --out runs/a
     sdbc-evolve --config run.yaml --scheduler tcp://10.0.0.5:8786
 
@@ -29,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import ConfigError, Treatment, check_task_config
+from sdbc_evolution.run.config import ConfigError, check_task_config
 from sdbc_evolution.run.evaluators import (
     SchedulerLost,
     SchedulerUnreachable,
@@ -78,7 +79,10 @@ def build_parser() -> argparse.ArgumentParser:
         "points) and exit",
     )
     parser.add_argument(
-        "--treatment", choices=[t.value for t in Treatment], help="treatment"
+        "--treatment",
+        metavar="NAME|FILE",
+        help="a paper treatment (fit, ns-ts, ns-sd, ns-sd+) or a YAML file declaring "
+        "one (see the README, 'Treatments as parts')",
     )
     parser.add_argument("--generations", type=int, help="generations to run")
     parser.add_argument("--population", type=int, help="population size")
@@ -192,7 +196,7 @@ def _run(experiment: Experiment, out: Path, quiet: bool) -> int:
     bar = tqdm(
         total=experiment.generations,
         initial=experiment.state.generation,
-        desc=f"{config.task} {config.treatment.value}",
+        desc=f"{config.task} {config.treatment.name}",
         unit="gen",
         disable=quiet,
         dynamic_ncols=True,

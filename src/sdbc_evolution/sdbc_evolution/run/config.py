@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import field
-from enum import Enum
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
+from pydantic import BeforeValidator
 from sdbc_sim.settings import (
     Field,
     Fraction,
@@ -38,25 +38,14 @@ from sdbc_sim.settings import (
     to_plain,
 )
 
+from sdbc_evolution.ga.novelty import NoveltyConfig
+from sdbc_evolution.ga.treatments import PRESETS, TreatmentSpec, parse_treatment
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 
 
 class ConfigError(SettingsError):
     """A configuration that cannot run; the message names the offending key."""
-
-
-class Treatment(str, Enum):
-    """The paper's four evolutionary treatments."""
-
-    FIT = "fit"
-    """Fitness-driven evolution: rank on fitness alone."""
-    NS_TS = "ns-ts"
-    """Novelty search (+ fitness) with the task-specific characterisation."""
-    NS_SD = "ns-sd"
-    """Novelty search (+ fitness) with the SDBC, unweighted."""
-    NS_SD_PLUS = "ns-sd+"
-    """Novelty search (+ fitness) with the SDBC, weighted by mutual information."""
 
 
 QUICKSTART_GENERATIONS = 40
@@ -109,22 +98,6 @@ class GaConfig:
 
 
 @settings
-class NoveltyConfig:
-    """The novelty metric, its archive and the (fitness, novelty) ranking."""
-
-    k: PositiveInt = 15
-    """Nearest neighbours averaged by the novelty metric."""
-    archive_probability: Fraction = 0.03
-    """Chance that each evaluated individual enters the archive."""
-    archive_size: NonNegativeInt = 1000
-    """Most archive entries; a random one is replaced when full."""
-    tie_break: Literal["crowding", "fitness"] = "crowding"
-    """Order inside a non-dominated front: "crowding" (NSGA-II crowding distance,
-    the paper) or "fitness" (fitness normalised within the front, the authors'
-    code)."""
-
-
-@settings
 class EvaluationConfig:
     """How individuals are evaluated."""
 
@@ -148,8 +121,11 @@ class ExperimentConfig:
     task_config: dict[str, Any] = field(default_factory=dict)
     """Overrides of the task's own settings (checked against them by
     :func:`check_task_config`)."""
-    treatment: Treatment = Treatment.NS_SD_PLUS
-    """Which of the four treatments drives selection."""
+    treatment: Annotated[TreatmentSpec, BeforeValidator(parse_treatment)] = field(
+        default_factory=lambda: PRESETS["ns-sd+"]
+    )
+    """What drives selection: a paper preset's name (``fit``, ``ns-ts``, ``ns-sd``,
+    ``ns-sd+``) or a declared treatment (``sdbc_evolution.ga.treatments``)."""
     generations: PositiveInt | None = None
     """Generations to run; None takes the task's ``default_generations``."""
     seed: Annotated[int, Field(ge=0, lt=2**63)] = 0
@@ -240,7 +216,7 @@ def quickstart_config() -> ExperimentConfig:
     ``configs/quickstart.yaml`` holds the same values."""
     return ExperimentConfig(
         task="gate_escape",
-        treatment=Treatment.NS_SD_PLUS,
+        treatment=PRESETS["ns-sd+"],
         generations=QUICKSTART_GENERATIONS,
         ga=GaConfig(population_size=QUICKSTART_POPULATION),
         evaluation=EvaluationConfig(reevaluation_trials=QUICKSTART_REEVALUATION),
@@ -289,6 +265,34 @@ def load_config(path: str | Path) -> ExperimentConfig:
         return config_from_dict(data)
     except ConfigError as error:
         raise ConfigError(f"{path}: {error}") from None
+
+
+def load_treatment(value: str | Path) -> TreatmentSpec:
+    """A treatment from a paper preset's name or a YAML file declaring one (the
+    mapping itself, or a file with a top-level ``treatment`` key).
+
+    Raises:
+        ConfigError: Neither a preset nor a readable declaration, naming the problem.
+    """
+    text = str(value)
+    if text in PRESETS:
+        return PRESETS[text]
+    path = Path(text)
+    if not path.is_file():
+        raise ConfigError(
+            f"treatment: {text!r} is neither a paper treatment ({list(PRESETS)}) nor "
+            "a YAML file"
+        )
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise ConfigError(f"treatment file {path}: {error}") from None
+    if isinstance(data, dict) and set(data) == {"treatment"}:
+        data = data["treatment"]
+    try:
+        return parse_treatment(data)
+    except SettingsError as error:
+        raise ConfigError(f"{path}: {error.prefixed('treatment')}") from None
 
 
 def dump_config(config: ExperimentConfig) -> str:

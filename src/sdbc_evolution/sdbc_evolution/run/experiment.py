@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 from sdbc_sim.engine import controller_fitness
 
+from sdbc_evolution.characterise.evaluation import SDBC, TASK
 from sdbc_evolution.ga.archive import NoveltyArchive
 from sdbc_evolution.ga.mutation import gaussian_mutation
 from sdbc_evolution.ga.rankings.nsga2 import positions
@@ -90,11 +91,27 @@ def _locked(out_dir: str | Path, lock: RunLock | None) -> RunLock:
 
 def task_spec(config: ExperimentConfig) -> TaskSpec:
     """What evaluators need to know of a configuration's task."""
+    characterisation = config.treatment.characterisation
     return TaskSpec(
         name=config.task,
         overrides=dict(config.task_config),
         fitness_mean=config.evaluation.fitness_mean,
+        characterisations=() if characterisation is None else (characterisation,),
     )
+
+
+def results_directory(
+    config: ExperimentConfig, out_dir: str | Path, info: TaskInfo
+) -> ResultsDirectory:
+    """The run's output directory; its weight columns name the dimensions of the
+    characterisation the treatment weights (the SDBC's for the paper's)."""
+    characterisation = config.treatment.characterisation
+    weight_names = (
+        info.names_of(characterisation.key)
+        if config.treatment.weights and characterisation is not None
+        else info.sdbc_names
+    )
+    return ResultsDirectory(out_dir, info.sdbc_names, weight_names)
 
 
 @dataclass
@@ -192,7 +209,7 @@ class Experiment:
         """
         config = config.resolved()
         info = info or TaskInfo.of(task_spec(config))
-        results = ResultsDirectory(out_dir, info.sdbc_names)
+        results = results_directory(config, out_dir, info)
         lock = _locked(out_dir, lock)
         if results.holds_a_run():
             lock.release()
@@ -250,7 +267,7 @@ class Experiment:
         """
         config = config.resolved()
         info = info or TaskInfo.of(task_spec(config))
-        results = ResultsDirectory(out_dir, info.sdbc_names)
+        results = results_directory(config, out_dir, info)
         if not Path(out_dir).is_dir():
             raise CheckpointError(f"no run at {out_dir}: nothing to resume")
         lock = _locked(out_dir, lock)
@@ -383,12 +400,20 @@ class Experiment:
         return record
 
     def _check_evaluation(self, evaluation: Evaluation, n: int) -> None:
-        d = len(self.info.sdbc_names)
-        if evaluation.fitness.shape != (n,) or evaluation.sdbc.shape != (n, d):
+        if evaluation.fitness.shape != (n,):
             raise ExperimentError(
-                f"the evaluator returned fitness {evaluation.fitness.shape} and SDBC "
-                f"{evaluation.sdbc.shape} for {n} genomes and {d} SDBC dimensions"
+                f"the evaluator returned fitness {evaluation.fitness.shape} for {n} "
+                "genomes"
             )
+        keys = {SDBC} | {self._behaviour_key} - {None}
+        for key in sorted(keys):
+            d = len(self.info.names_of(key))
+            got = evaluation.behaviour(key).shape
+            if got != (n, d):
+                raise ExperimentError(
+                    f"the evaluator returned characterisation {key!r} of shape {got} "
+                    f"for {n} genomes and {d} dimensions"
+                )
         if not np.isfinite(evaluation.fitness).all():
             raise ExperimentError("the evaluator returned NaN or infinite fitness")
 
@@ -429,10 +454,23 @@ class Experiment:
         fitness = controller_fitness(trial_fitness, self.config.evaluation.fitness_mean)
         return float(fitness[0]), float(trial_fitness.mean())
 
+    @property
+    def _behaviour_key(self) -> str | None:
+        characterisation = self.config.treatment.characterisation
+        return None if characterisation is None else characterisation.key
+
     def _individuals(
         self, evaluation: Evaluation, scores: GenerationScores
     ) -> dict[str, np.ndarray]:
         state = self.state
+        extra = {}
+        key = self._behaviour_key
+        if key not in (None, SDBC, TASK):
+            # A characterisation of the treatment's own: kept beside the paper's.
+            extra = {
+                "behaviour": evaluation.behaviour(key).astype(np.float32),
+                "behaviour_names": np.array(self.info.names_of(key)),
+            }
         return {
             "fitness": evaluation.fitness,
             "trial_fitness": evaluation.trial_fitness.astype(np.float32),
@@ -444,6 +482,7 @@ class Experiment:
             "archived": scores.archived,
             "parent": state.parent.astype(np.int32),
             "elite": state.elite,
+            **extra,
         }
 
     def _checkpoint(self) -> Checkpoint:

@@ -24,6 +24,7 @@ from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
     load_config,
+    load_treatment,
     quickstart_config,
 )
 from sdbc_evolution.run.results import CONFIG_FILE
@@ -42,7 +43,8 @@ class ConfigRequest:
         resume: Continue the run in ``out`` (its configuration is the base).
         out: The run's output directory.
         task: Task name.
-        treatment: Treatment name (``ns-sd+``, ...).
+        treatment: A paper treatment's name (``ns-sd+``, ...) or a YAML file
+            declaring a treatment.
         generations: Generations to run.
         population: Population size.
         trials: Trials per individual.
@@ -83,7 +85,9 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
     else:
         config = quickstart_config()
     changes: dict[str, Any] = {}
-    for name in ("task", "treatment", "generations", "seed"):
+    if request.treatment is not None:
+        changes["treatment"] = load_treatment(request.treatment)
+    for name in ("task", "generations", "seed"):
         value = getattr(request, name)
         if value is not None:
             changes[name] = value
@@ -112,7 +116,7 @@ def default_out(config: ExperimentConfig) -> Path:
     """``results/<task>-<treatment>-seed<seed>``, numbered if already taken."""
     base = (
         RESULTS_ROOT
-        / f"{task_label(config.task)}-{config.treatment.value}-seed{config.seed}"
+        / f"{task_label(config.task)}-{config.treatment.name}-seed{config.seed}"
     )
     if not base.exists():
         return base

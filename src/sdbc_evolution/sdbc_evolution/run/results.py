@@ -29,8 +29,9 @@ The replication study and the analysis read this layout; it is kept stable::
   after and is timed by ``bench/generation.py``); ``evaluation_time``: seconds of
   it spent waiting for the evaluator (trials and re-evaluation, with SDBC
   extraction, in whatever processes);
-- ``weight:<dimension name>``, one per SDBC dimension: the NS-SD+ weights in force
-  (delta + mutual information in bits; empty for the other treatments).
+- ``weight:<dimension name>``, one per dimension of the weighted characterisation
+  (the SDBC's for the paper's treatments): the weights in force, delta + relevance
+  (for NS-SD+ the mutual information in bits; empty for unweighted treatments).
 
 Floats are written with Python's ``repr`` (shortest exact round trip).
 
@@ -42,6 +43,9 @@ Floats are written with Python's ``repr`` (shortest exact round trip).
 - ``sdbc_names`` (D,) str: the SDBC dimension names;
 - ``novelty`` (N,) float64 (NaN for Fit); ``front`` (N,) int16; ``rank`` (N,) int32
   (position in the ranking order, 0 = best); ``archived`` (N,) bool;
+- ``behaviour`` (N, D') float32 and ``behaviour_names`` (D',) str: only for a
+  treatment whose characterisation is neither the task-specific one nor the paper's
+  SDBC, its raw vectors;
 - ``parent`` (N,) int32: index in the previous generation of the individual it was
   copied or mutated from (-1 in generation 0); ``elite`` (N,) bool: copied unchanged.
 
@@ -244,17 +248,27 @@ class ResultsDirectory:
 
     Args:
         path: The directory.
-        sdbc_names: Names of the SDBC dimensions (the weight columns).
+        sdbc_names: Names of the SDBC dimensions.
+        weight_names: Names of the weighted dimensions (the weight columns); by
+            default the SDBC's.
     """
 
-    def __init__(self, path: str | Path, sdbc_names: tuple[str, ...]) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        sdbc_names: tuple[str, ...],
+        weight_names: tuple[str, ...] | None = None,
+    ) -> None:
         self.path = Path(path)
         self.sdbc_names = tuple(sdbc_names)
+        self.weight_names = (
+            self.sdbc_names if weight_names is None else tuple(weight_names)
+        )
 
     @property
     def columns(self) -> tuple[str, ...]:
         """Header of ``generations.csv``."""
-        return BASE_COLUMNS + tuple(WEIGHT_PREFIX + n for n in self.sdbc_names)
+        return BASE_COLUMNS + tuple(WEIGHT_PREFIX + n for n in self.weight_names)
 
     @property
     def checkpoint_path(self) -> Path:
@@ -310,7 +324,7 @@ class ResultsDirectory:
         )
         try:
             with open(self.path / GENERATIONS_FILE, "a", newline="") as f:
-                csv.writer(f).writerow(record.row(len(self.sdbc_names)))
+                csv.writer(f).writerow(record.row(len(self.weight_names)))
                 f.flush()
                 os.fsync(f.fileno())
         except OSError as error:

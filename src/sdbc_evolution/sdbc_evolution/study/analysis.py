@@ -91,7 +91,7 @@ def analyse_task(
     curves = best_curves(digest)
     header = ["generation"]
     for t in curves.treatments:
-        header += [f"{t.value} mean", f"{t.value} sd", f"{t.value} n"]
+        header += [f"{t} mean", f"{t} sd", f"{t} n"]
     rows = []
     for g in curves.generations:
         row: list[Any] = [int(g)]
@@ -106,7 +106,7 @@ def analyse_task(
         tables / f"bests_{task}.csv",
         ["treatment", "run", "best"],
         [
-            [t.value, name, value]
+            [t, name, value]
             for t in bests
             for name, value in zip(best_runs[t], bests[t], strict=True)
         ],
@@ -129,8 +129,8 @@ def analyse_task(
         ],
         [
             [
-                s.a.value,
-                s.b.value,
+                s.a,
+                s.b,
                 s.n_a,
                 s.n_b,
                 s.median_a,
@@ -182,7 +182,7 @@ def analyse_task(
             maps.region_share(k),
             strict=True,
         ):
-            rows.append([t.value, name, u, c, h])
+            rows.append([t, name, u, c, h])
     _write_csv(
         tables / f"exploration_{task}.csv",
         ["treatment", "run", "uniformity", "coverage", "high_fitness_share"],
@@ -191,17 +191,16 @@ def analyse_task(
     (tables / f"exploration_{task}.npz").write_bytes(
         npz_bytes(
             {
-                "treatments": np.array([t.value for t in maps.treatments]),
+                "treatments": np.array([t for t in maps.treatments]),
                 "mean_share": maps.mean_share,
                 "percentile": maps.percentile,
                 "pooled_percentile": maps.pooled_percentile,
                 "region": maps.region,
                 **{
-                    f"shares_{t.value}": maps.shares[k]
-                    for k, t in enumerate(maps.treatments)
+                    f"shares_{t}": maps.shares[k] for k, t in enumerate(maps.treatments)
                 },
                 **{
-                    f"runs_{t.value}": np.array(maps.run_names[k])
+                    f"runs_{t}": np.array(maps.run_names[k])
                     for k, t in enumerate(maps.treatments)
                 },
             }

@@ -34,7 +34,7 @@ from enum import Enum
 
 import numpy as np
 
-from sdbc_evolution.run.config import Treatment
+from sdbc_evolution.ga.treatments import label
 from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.paper import is_paper_task, task_title
 from sdbc_evolution.study.quality import PairTest, mann_whitney
@@ -46,14 +46,7 @@ CONSISTENT_CV = 0.2
 """Median SD / mean of the top features under which relevance is "consistent"
 (the paper's table: 0.01 to 0.11)."""
 
-FIT, NS_TS, NS_SD, NS_SD_PLUS = (
-    Treatment.FIT,
-    Treatment.NS_TS,
-    Treatment.NS_SD,
-    Treatment.NS_SD_PLUS,
-)
-LABELS = {FIT: "Fit", NS_TS: "NS-TS", NS_SD: "NS-SD", NS_SD_PLUS: "NS-SD+"}
-"""How the report names the treatments (the paper's names)."""
+FIT, NS_TS, NS_SD, NS_SD_PLUS = "fit", "ns-ts", "ns-sd", "ns-sd+"
 
 
 @dataclass(frozen=True)
@@ -160,13 +153,13 @@ def not_below(test: PairTest, alpha: float = ALPHA) -> Verdict:
 
 def _evidence(test: PairTest, what: str = "best fitness") -> str:
     return (
-        f"median {what} {LABELS[test.a]} {_fmt(test.median_a)} vs {LABELS[test.b]} "
+        f"median {what} {label(test.a)} {_fmt(test.median_a)} vs {label(test.b)} "
         f"{_fmt(test.median_b)} (n = {test.n_a}, {test.n_b}); "
         f"A = {test.effect:.2f}, {_p(test.p)}"
     )
 
 
-def _find(tests: list[PairTest], a: Treatment, b: Treatment) -> PairTest | None:
+def _find(tests: list[PairTest], a: str, b: str) -> PairTest | None:
     """The test of a against b, turned round if it was run as b against a."""
     for t in tests:
         if (t.a, t.b) == (a, b):
@@ -220,7 +213,7 @@ def quality_claims(
 
     for variant in (NS_TS, NS_SD, NS_SD_PLUS):
         add(
-            f"{LABELS[variant]} reaches higher fitness than Fit in {title}",
+            f"{label(variant)} reaches higher fitness than Fit in {title}",
             "p < 0.05",
             _find(tests, variant, FIT),
             above,
@@ -317,9 +310,7 @@ def relevance_claims(task: str, table: RelevanceTable | None) -> list[Claim]:
     return claims
 
 
-def _metric_test(
-    maps: ExplorationMaps, metric: str, a: Treatment, b: Treatment
-) -> PairTest | None:
+def _metric_test(maps: ExplorationMaps, metric: str, a: str, b: str) -> PairTest | None:
     if a not in maps.treatments or b not in maps.treatments:
         return None
     values = {t: getattr(maps, metric)(k) for k, t in enumerate(maps.treatments)}
@@ -350,13 +341,13 @@ def exploration_claims(maps: ExplorationMaps, alpha: float = ALPHA) -> list[Clai
 
     for variant in (NS_TS, NS_SD, NS_SD_PLUS):
         add(
-            f"{LABELS[variant]} explores more uniformly than Fit in {title}",
+            f"{label(variant)} explores more uniformly than Fit in {title}",
             _metric_test(maps, "uniformity", variant, FIT),
             "uniformity",
         )
     for other in (NS_TS, NS_SD_PLUS):
         add(
-            f"NS-SD explores more uniformly than {LABELS[other]} in {title}",
+            f"NS-SD explores more uniformly than {label(other)} in {title}",
             _metric_test(maps, "uniformity", NS_SD, other),
             "uniformity",
         )

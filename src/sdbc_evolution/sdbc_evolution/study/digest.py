@@ -39,10 +39,10 @@ from typing import Any
 import numpy as np
 import yaml
 
+from sdbc_evolution.ga.treatments import PAPER_TREATMENTS
 from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
-    Treatment,
     config_from_dict,
     dump_config,
 )
@@ -97,12 +97,21 @@ class RunDigest:
         return self.config.task
 
     @property
-    def treatment(self) -> Treatment:
-        return self.config.treatment
+    def treatment(self) -> str:
+        """The treatment's name."""
+        return self.config.treatment.name
 
     @property
     def generations(self) -> int:
         return int(self.curve.shape[0])
+
+
+def _ordered_treatments(runs: Any) -> list[str]:
+    """Treatment names of ``runs``: the paper's four in its order, then the
+    others in the order of their runs."""
+    present = list(dict.fromkeys(r.treatment for r in runs))
+    paper = [t for t in PAPER_TREATMENTS if t in present]
+    return paper + [t for t in present if t not in paper]
 
 
 @dataclass(frozen=True)
@@ -125,13 +134,14 @@ class TaskDigest:
     runs: tuple[RunDigest, ...]
     maps: ExplorationMaps
 
-    def of(self, treatment: Treatment | None = None) -> list[RunDigest]:
-        return [r for r in self.runs if treatment is None or r.treatment is treatment]
+    def of(self, treatment: str | None = None) -> list[RunDigest]:
+        """Its runs (of one treatment, by name)."""
+        return [r for r in self.runs if treatment is None or r.treatment == treatment]
 
-    def treatments(self) -> list[Treatment]:
-        """Treatments with usable runs, in the paper's order."""
-        present = {r.treatment for r in self.runs}
-        return [t for t in Treatment if t in present]
+    def treatments(self) -> list[str]:
+        """Names of the treatments with usable runs: the paper's four in its
+        order, then the others in the order of their runs."""
+        return _ordered_treatments(self.runs)
 
 
 @dataclass(frozen=True)
@@ -181,7 +191,7 @@ class StudyDigest:
     def runs(self) -> list[RunDigest]:
         return [r for t in self.task_digests for r in t.runs]
 
-    def of(self, task: str, treatment: Treatment | None = None) -> list[RunDigest]:
+    def of(self, task: str, treatment: str | None = None) -> list[RunDigest]:
         return self.task(task).of(treatment)
 
 
@@ -233,7 +243,7 @@ def task_arrays(digest: TaskDigest) -> dict[str, np.ndarray]:
         "mi_chance": np.array([runs[i].chance for i in plus], dtype=np.float64).reshape(
             len(plus), width
         ),
-        "som_treatments": _strings(t.value for t in maps.treatments),
+        "som_treatments": _strings(maps.treatments),
         "som_counts": np.stack([by_name[r.name] for r in runs]).astype(np.int64),
         "som_percentile": maps.percentile.astype(np.float64),
         "som_pooled_percentile": maps.pooled_percentile.astype(np.float64),
@@ -387,12 +397,7 @@ def _read_task(file: Path, task: str, som: SomSettings) -> TaskDigest:
     chance = npz.get("mi_chance", "f", (mi_runs.size, d))
     units = som.units
     counts = npz.get("som_counts", "i", (r, units))
-    try:
-        som_treatments = tuple(
-            Treatment(str(t)) for t in npz.get("som_treatments", "U", (None,))
-        )
-    except ValueError as error:
-        raise _fail(file, f"'som_treatments': {error}") from None
+    som_treatments = tuple(str(t) for t in npz.get("som_treatments", "U", (None,)))
     percentile = npz.get("som_percentile", "f", (len(som_treatments), units))
     pooled = npz.get("som_pooled_percentile", "f", (units,))
     sample_count = int(npz.get("som_sample_count", "i", ()))
@@ -427,15 +432,16 @@ def _read_task(file: Path, task: str, som: SomSettings) -> TaskDigest:
                 chance=chances.get(i),
             )
         )
-    present = [t for t in Treatment if any(r.treatment is t for r in runs)]
-    if list(som_treatments) != present:
+    present = _ordered_treatments(runs)
+    if sorted(som_treatments) != sorted(present):
         raise _fail(
             file,
-            f"'som_treatments' {[t.value for t in som_treatments]} are not the runs' "
-            f"treatments {[t.value for t in present]}",
+            f"'som_treatments' {list(som_treatments)} are not the runs' "
+            f"treatments {present}",
         )
+    present = list(som_treatments)
     by_treatment = [
-        [i for i, r in enumerate(runs) if r.treatment is t] for t in present
+        [i for i, r in enumerate(runs) if r.treatment == t] for t in present
     ]
     maps = ExplorationMaps(
         task=task,

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.rundirs import RunData, StudyData
 
 BMU_CHUNK = 4096
@@ -102,7 +101,7 @@ class ExplorationMaps:
 
     task: str
     settings: SomSettings
-    treatments: tuple[Treatment, ...]
+    treatments: tuple[str, ...]
     run_names: tuple[tuple[str, ...], ...]
     counts: tuple[np.ndarray, ...]
     percentile: np.ndarray

@@ -17,19 +17,35 @@ from types import ModuleType
 
 import numpy as np
 
-from sdbc_evolution.run.config import Treatment
-from sdbc_evolution.study.claims import LABELS
+from sdbc_evolution.ga.treatments import label
 from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.paper import task_title
 from sdbc_evolution.study.quality import Curves
 
 COLOURS = {
-    Treatment.FIT: "#555555",
-    Treatment.NS_TS: "#1f77b4",
-    Treatment.NS_SD: "#ff7f0e",
-    Treatment.NS_SD_PLUS: "#2ca02c",
+    "fit": "#555555",
+    "ns-ts": "#1f77b4",
+    "ns-sd": "#ff7f0e",
+    "ns-sd+": "#2ca02c",
 }
-"""One colour per treatment, in every figure."""
+"""The paper's treatments' colours, in every figure."""
+OTHER_COLOURS = ("#d62728", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf")
+"""Colours of other treatments, in the order a study lists them."""
+
+
+def colour(treatment: str, treatments: tuple[str, ...] | list[str]) -> str:
+    """A treatment's colour among a figure's ``treatments``: the paper's four keep
+    theirs; the others take :data:`OTHER_COLOURS` in the order they are listed (a
+    task's figures list them in one order), then grey shades."""
+    if treatment in COLOURS:
+        return COLOURS[treatment]
+    others = [t for t in treatments if t not in COLOURS]
+    k = others.index(treatment)
+    if k < len(OTHER_COLOURS):
+        return OTHER_COLOURS[k]
+    return str(0.3 + 0.5 * ((k - len(OTHER_COLOURS)) % 5) / 4)
+
+
 DPI = 120
 """Resolution of the PNG files."""
 MAX_CIRCLE_AREA = 160.0
@@ -50,12 +66,12 @@ def plot_curves(curves: Curves, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     x = curves.generations
     for i, treatment in enumerate(curves.treatments):
-        colour = COLOURS[treatment]
-        label = f"{LABELS[treatment]} (n = {int(curves.n[i].max())})"
-        ax.plot(x, curves.mean[i], color=colour, label=label, linewidth=1.4)
+        line_colour = colour(treatment, curves.treatments)
+        legend = f"{label(treatment)} (n = {int(curves.n[i].max())})"
+        ax.plot(x, curves.mean[i], color=line_colour, label=legend, linewidth=1.4)
         se = np.nan_to_num(curves.se[i])
         ax.fill_between(
-            x, curves.mean[i] - se, curves.mean[i] + se, color=colour, alpha=0.2
+            x, curves.mean[i] - se, curves.mean[i] + se, color=line_colour, alpha=0.2
         )
     ax.set_xlabel("generation")
     source = "re-evaluated" if "reevaluated" in "".join(curves.sources) else "selected"
@@ -69,15 +85,15 @@ def plot_curves(curves: Curves, path: Path) -> Path:
     return path
 
 
-def plot_bests(task: str, bests: dict[Treatment, np.ndarray], path: Path) -> Path:
+def plot_bests(task: str, bests: dict[str, np.ndarray], path: Path) -> Path:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(4.8, 4.0))
     treatments = list(bests)
     data = [bests[t] for t in treatments]
     box = ax.boxplot(data, whis=1.5, showfliers=False, patch_artist=True)
-    ax.set_xticks(range(1, len(treatments) + 1), [LABELS[t] for t in treatments])
+    ax.set_xticks(range(1, len(treatments) + 1), [label(t) for t in treatments])
     for patch, t in zip(box["boxes"], treatments, strict=True):
-        patch.set_facecolor(COLOURS[t])
+        patch.set_facecolor(colour(t, treatments))
         patch.set_alpha(0.35)
     jitter = np.random.default_rng(0)
     for i, values in enumerate(data):
@@ -85,7 +101,7 @@ def plot_bests(task: str, bests: dict[Treatment, np.ndarray], path: Path) -> Pat
             i + 1 + jitter.uniform(-0.12, 0.12, values.size),
             values,
             s=12,
-            color=COLOURS[treatments[i]],
+            color=colour(treatments[i], treatments),
             zorder=3,
         )
     ax.set_ylabel("best fitness of the run")
@@ -138,9 +154,7 @@ def plot_exploration(maps: ExplorationMaps, path: Path) -> Path:
         ax.set_aspect("equal")
         ax.set_xticks([])
         ax.set_yticks([])
-        ax.set_title(
-            f"{LABELS[treatment]} ({maps.shares[i].shape[0]} runs)", fontsize=9
-        )
+        ax.set_title(f"{label(treatment)} ({maps.shares[i].shape[0]} runs)", fontsize=9)
     if mappable is not None:
         bar = fig.colorbar(mappable, ax=axes[0, -1], shrink=0.8)
         bar.set_label(f"fitness, {maps.settings.fitness_percentile:g}th percentile")

@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.claims import ALPHA, Claim
 from sdbc_evolution.study.cost import CLUSTER_WORKERS, Projection, TaskCost
 from sdbc_evolution.study.digest import StudyDigest
@@ -52,8 +51,8 @@ class TaskAnalysis:
 
     task: str
     curves: Curves
-    bests: dict[Treatment, np.ndarray]
-    best_runs: dict[Treatment, tuple[str, ...]]
+    bests: dict[str, np.ndarray]
+    best_runs: dict[str, tuple[str, ...]]
     tests: list[PairTest]
     relevance: RelevanceTable | None
     maps: ExplorationMaps

@@ -104,7 +104,7 @@ def probe(
         probes.append(
             Probe(
                 task=task,
-                treatment=treatment.value,
+                treatment=treatment.name,
                 cpu_per_generation=float(np.mean(cpu)),
                 wall_per_generation=float(np.mean(wall)),
                 evaluation_share=float(np.mean(share)),

@@ -26,11 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
+from sdbc_evolution.ga.treatments import TreatmentSpec, treatment_directory
 from sdbc_evolution.run.checkpoint import CheckpointError, load_checkpoint
 from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
-    Treatment,
     load_config,
 )
 from sdbc_evolution.run.evaluators import TaskInfo
@@ -45,22 +45,21 @@ LOG_FILE = "study_log.jsonl"
 """Timings of the ``run`` sessions, one JSON object per task and session."""
 DISCARDED_DIR = ".discarded"
 """Where runs that could not be resumed are moved."""
-TREATMENT_DIRS: dict[Treatment, str] = {
-    Treatment.FIT: "fit",
-    Treatment.NS_TS: "ns-ts",
-    Treatment.NS_SD: "ns-sd",
-    Treatment.NS_SD_PLUS: "ns-sd-plus",
-}
-"""Directory name of each treatment (no '+' in paths)."""
 
 
-def run_seed(study_seed: int, task: str, treatment: Treatment, index: int) -> int:
+def _name(treatment: str | TreatmentSpec) -> str:
+    return treatment.name if isinstance(treatment, TreatmentSpec) else treatment
+
+
+def run_seed(
+    study_seed: int, task: str, treatment: str | TreatmentSpec, index: int
+) -> int:
     """The seed of run ``index`` of ``treatment`` on ``task`` (see module docstring)."""
     sequence = np.random.SeedSequence(
         study_seed,
         spawn_key=(
             zlib.crc32(task.encode()),
-            zlib.crc32(Treatment(treatment).value.encode()),
+            zlib.crc32(_name(treatment).encode()),
             index,
         ),
     )
@@ -80,7 +79,7 @@ class RunSpec:
     """
 
     task: str
-    treatment: Treatment
+    treatment: TreatmentSpec
     index: int
     path: Path
     config: ExperimentConfig
@@ -88,15 +87,18 @@ class RunSpec:
     @property
     def name(self) -> str:
         """``task/treatment/run_NN``: how reports and progress name the run."""
-        return f"{self.task}/{TREATMENT_DIRS[self.treatment]}/run_{self.index:02d}"
+        return f"{self.task}/{self.treatment.directory}/run_{self.index:02d}"
 
     @property
     def generations(self) -> int:
         return self.config.resolved_generations
 
 
-def run_directory(root: Path, task: str, treatment: Treatment, index: int) -> Path:
-    return Path(root) / task / TREATMENT_DIRS[treatment] / f"run_{index:02d}"
+def run_directory(
+    root: Path, task: str, treatment: str | TreatmentSpec, index: int
+) -> Path:
+    directory = treatment_directory(_name(treatment))
+    return Path(root) / task / directory / f"run_{index:02d}"
 
 
 def study_plan(

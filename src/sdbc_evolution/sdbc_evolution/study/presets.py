@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import yaml
+from pydantic import BeforeValidator
 from sdbc_sim.settings import (
     Field,
     PositiveInt,
@@ -38,10 +39,10 @@ from sdbc_sim.settings import (
     to_plain,
 )
 
+from sdbc_evolution.ga.treatments import PRESETS, TreatmentSpec, parse_treatment
 from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
-    Treatment,
     check_task_config,
     config_from_dict,
 )
@@ -77,8 +78,12 @@ class StudyPreset:
     tasks: Annotated[tuple[str, ...], Field(min_length=1)] = PAPER_TASKS
     """Tasks of the study, in the order they run: registered names or
     ``package.module:Class`` references (see :mod:`sdbc_sim.tasks`)."""
-    treatments: Annotated[tuple[Treatment, ...], Field(min_length=1)] = tuple(Treatment)
-    """Treatments compared on every task."""
+    treatments: Annotated[
+        tuple[Annotated[TreatmentSpec, BeforeValidator(parse_treatment)], ...],
+        Field(min_length=1),
+    ] = tuple(PRESETS.values())
+    """Treatments compared on every task: paper presets by name, or declared ones
+    (mappings, as ``sdbc-evolve --treatment`` takes them)."""
     generations: dict[str, PositiveInt] = field(default_factory=dict)
     """Generations per task; a task left out takes its ``default_generations``."""
     task_config: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -101,9 +106,14 @@ class StudyPreset:
             "point, or put its folder on PYTHONPATH)",
         )
         check(
-            len(set(self.treatments)) == len(self.treatments),
+            len({t.name for t in self.treatments}) == len(self.treatments),
             "treatments",
-            "has duplicates",
+            f"has duplicates: {[t.name for t in self.treatments]}",
+        )
+        check(
+            len({t.directory for t in self.treatments}) == len(self.treatments),
+            "treatments",
+            f"names that share a directory: {[t.name for t in self.treatments]}",
         )
         for key in ("generations", "task_config"):
             extra = sorted(set(getattr(self, key)) - set(self.tasks))
@@ -132,8 +142,20 @@ class StudyPreset:
         except UnknownTask as error:
             raise PresetError(f"tasks: {error}") from None
 
+    def treatment(self, name: str | TreatmentSpec) -> TreatmentSpec:
+        """One of the preset's treatments, by name."""
+        if isinstance(name, TreatmentSpec):
+            return name
+        for t in self.treatments:
+            if t.name == name:
+                return t
+        raise PresetError(
+            f"treatment {name!r} is not in preset {self.name!r} "
+            f"({[t.name for t in self.treatments]})"
+        )
+
     def experiment_config(
-        self, task: str, treatment: Treatment, seed: int
+        self, task: str, treatment: str | TreatmentSpec, seed: int
     ) -> ExperimentConfig:
         """The configuration of one run (validated).
 
@@ -144,7 +166,7 @@ class StudyPreset:
             **self.experiment,
             "task": task,
             "task_config": dict(self.task_config.get(task, {})),
-            "treatment": Treatment(treatment).value,
+            "treatment": self.treatment(treatment),
             "generations": self.generations_of(task),
             "seed": seed,
         }
@@ -172,7 +194,7 @@ class StudyPreset:
             "runs": self.runs,
             "seed": self.seed,
             "tasks": list(self.tasks),
-            "treatments": [t.value for t in self.treatments],
+            "treatments": [t.to_plain() for t in self.treatments],
             "generations": {t: self.generations_of(t) for t in self.tasks},
             "task_config": {t: dict(c) for t, c in self.task_config.items()},
             "experiment": to_plain(self.experiment),

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import mannwhitneyu
 
-from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.digest import RunDigest, TaskDigest
 
 
@@ -48,7 +47,7 @@ class Curves:
     """
 
     task: str
-    treatments: tuple[Treatment, ...]
+    treatments: tuple[str, ...]
     mean: np.ndarray
     sd: np.ndarray
     n: np.ndarray
@@ -89,7 +88,7 @@ def best_curves(task: TaskDigest) -> Curves:
     return Curves(task.task, treatments, mean, sd, n, tuple(sources))
 
 
-def run_bests(task: TaskDigest) -> dict[Treatment, np.ndarray]:
+def run_bests(task: TaskDigest) -> dict[str, np.ndarray]:
     """Each run's best, per treatment (run order as found)."""
     return {t: np.array([run_best(r) for r in task.of(t)]) for t in task.treatments()}
 
@@ -113,8 +112,8 @@ class PairTest:
     """
 
     task: str
-    a: Treatment
-    b: Treatment
+    a: str
+    b: str
     n_a: int
     n_b: int
     median_a: float
@@ -130,12 +129,10 @@ class PairTest:
         return self.u / (self.n_a * self.n_b)
 
 
-def mann_whitney(
-    task: str, a: Treatment, b: Treatment, x: np.ndarray, y: np.ndarray
-) -> PairTest:
+def mann_whitney(task: str, a: str, b: str, x: np.ndarray, y: np.ndarray) -> PairTest:
     """The test of ``x`` (treatment a) against ``y`` (treatment b)."""
     if x.size == 0 or y.size == 0:
-        raise ValueError(f"{task}: {a.value} or {b.value} has no runs to compare")
+        raise ValueError(f"{task}: {a} or {b} has no runs to compare")
     result = mannwhitneyu(x, y, alternative="two-sided")
     p = float(result.pvalue)
     if math.isnan(p):  # every value tied: no evidence of a difference
@@ -155,7 +152,7 @@ def mann_whitney(
     )
 
 
-def pairwise_tests(task: str, bests: dict[Treatment, np.ndarray]) -> list[PairTest]:
+def pairwise_tests(task: str, bests: dict[str, np.ndarray]) -> list[PairTest]:
     """Every pair of treatments, in the paper's order (a before b)."""
     return [
         mann_whitney(task, a, b, bests[a], bests[b])

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.run.config import Treatment
 from sdbc_evolution.study.cost import workers_per_generation
 from sdbc_evolution.study.digest import (
     PresetSummary,
@@ -70,7 +69,7 @@ def with_study_dir(command: list[str], study_dir: str) -> list[str]:
 def reduce_run(run: RunData) -> RunDigest:
     """One run's digest; the mutual information only for NS-SD+ runs."""
     column = curve_column(run)
-    plus = run.treatment is Treatment.NS_SD_PLUS
+    plus = run.treatment == "ns-sd+"
     return RunDigest(
         name=run.name,
         config=run.config,

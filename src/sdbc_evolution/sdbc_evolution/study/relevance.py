@@ -32,9 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sdbc_evolution.run.config import Treatment
+from sdbc_evolution.relevance.measures import chance_information
 from sdbc_evolution.run.results import WEIGHT_PREFIX
-from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information
 from sdbc_evolution.study.digest import TaskDigest
 from sdbc_evolution.study.rundirs import RunData
 
@@ -75,27 +74,16 @@ def run_information(run: RunData) -> np.ndarray:
 CHANCE_GENERATIONS = 20
 """Generations per run, evenly spaced, whose MI is re-estimated with shuffled
 fitness for the chance level."""
-CHANCE_SEED = 2014
-"""Seeds the shuffles (with the generation), so the analysis is repeatable."""
-
-
-def chance_information(
-    sdbc: np.ndarray,
-    fitness: np.ndarray,
-    settings: WeightingSettings,
-    generation: int,
-) -> np.ndarray:
-    """(D,) I(F'; k) of one population, F' its fitness in a random order: the MI
-    that the estimate gives features unrelated to fitness, in bits."""
-    rng = np.random.default_rng((CHANCE_SEED, generation))
-    return mutual_information(sdbc, rng.permutation(fitness), settings, generation)
 
 
 def run_chance_information(
     run: RunData, generations: int = CHANCE_GENERATIONS
 ) -> np.ndarray:
-    """(D,) mean of :func:`chance_information` over ``generations`` evenly spaced
-    generations of ``run``, with the run's own weighting settings."""
+    """(D,) mean of the chance level
+    (:func:`sdbc_evolution.relevance.measures.chance_information`, the estimate
+    weighted treatments can subtract) over ``generations`` evenly spaced
+    generations of ``run``, with the run's own weighting settings, the shuffles
+    seeded by the generation so that the analysis repeats."""
     chosen = np.unique(
         np.linspace(0, run.generations - 1, min(generations, run.generations))
         .round()
@@ -155,7 +143,7 @@ def relevance_table(task: TaskDigest) -> RelevanceTable | None:
     """The table from the task's NS-SD+ runs (None without any)."""
     measured = [
         (r.information, r.chance)
-        for r in task.of(Treatment.NS_SD_PLUS)
+        for r in task.of("ns-sd+")
         if r.information is not None and r.chance is not None
     ]
     if not measured:

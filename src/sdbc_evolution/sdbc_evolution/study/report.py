@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from sdbc_evolution.ga.treatments import label
 from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.study.claims import (
-    LABELS,
     PAPER_RELEVANCE,
     Claim,
     Verdict,
@@ -78,9 +78,7 @@ def _sizes(analysis: Analysis) -> list[str]:
     for ta in analysis.tasks:
         config = study.of(ta.task)[0].config
         runs = Counter(r.treatment for r in study.of(ta.task))
-        per_treatment = ", ".join(
-            f"{LABELS[t]} {runs[t]}" for t in ta.curves.treatments
-        )
+        per_treatment = ", ".join(f"{label(t)} {runs[t]}" for t in ta.curves.treatments)
         sizes = [
             (config.ga.population_size, PAPER.ga.population_size),
             (config.evaluation.trials, PAPER.evaluation.trials),
@@ -214,8 +212,8 @@ def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         ["a", "b", "median a", "median b", "mean a", "mean b", "U", "A", "p"],
         [
             [
-                LABELS[t.a],
-                LABELS[t.b],
+                label(t.a),
+                label(t.b),
                 _f(t.median_a),
                 _f(t.median_b),
                 _f(t.mean_a),
@@ -289,12 +287,12 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
     notes = []
     for f in missing:
         rank = table.rank_of(f.name)
-        label = f.label or f.name
+        shown = f.label or f.name
         notes.append(
-            f"{label}: {f.mean:.2f} bits in the paper, ours "
+            f"{shown}: {f.mean:.2f} bits in the paper, ours "
             f"{table.mean[rank - 1]:.2f} (#{rank})"
             if rank
-            else f"{label}: not an SDBC dimension here"
+            else f"{shown}: not an SDBC dimension here"
         )
     if notes:
         lines += ["The paper's other listed features: " + "; ".join(notes) + ".", ""]
@@ -324,7 +322,7 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         u, c, h = maps.uniformity(k), maps.coverage(k), maps.region_share(k)
         rows.append(
             [
-                LABELS[t],
+                label(t),
                 str(u.size),
                 f"{u.mean():.3f} +- {_sd(u):.3f}",
                 f"{c.mean():.3f} +- {_sd(c):.3f}",

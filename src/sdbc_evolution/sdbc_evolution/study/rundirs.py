@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from sdbc_evolution.ga.treatments import PAPER_TREATMENTS, TreatmentSpec
 from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
-    Treatment,
     load_config,
 )
 from sdbc_evolution.run.results import (
@@ -75,7 +75,10 @@ class RunData:
         path: The run directory.
         config: Its configuration.
         columns: ``generations.csv`` as float columns (empty cells NaN).
-        sdbc_names: The SDBC dimension names (from the weight columns).
+        sdbc_names: The SDBC dimension names.
+        weight_names: The names of the weighted dimensions (the weight columns;
+            those of the treatment's own characterisation when it is not the
+            SDBC).
         fitness: One (N,) array per generation.
         trial_steps: (G,) total trial steps of each generation's population
             (sum over individuals of mean trial length x trials).
@@ -88,13 +91,20 @@ class RunData:
     sdbc_names: tuple[str, ...]
     fitness: list[np.ndarray] = field(repr=False)
     trial_steps: np.ndarray = field(repr=False)
+    weight_names: tuple[str, ...] = ()
 
     @property
     def task(self) -> str:
         return self.config.task
 
     @property
-    def treatment(self) -> Treatment:
+    def treatment(self) -> str:
+        """The treatment's name."""
+        return self.config.treatment.name
+
+    @property
+    def treatment_spec(self) -> TreatmentSpec:
+        """The treatment's declaration."""
         return self.config.treatment
 
     @property
@@ -105,6 +115,16 @@ class RunData:
         """The raw SDBC vectors (N, D) float32 of one generation."""
         with np.load(_individuals_path(self.path, generation)) as data:
             return np.asarray(data["sdbc"])
+
+    def behaviour(self, generation: int) -> np.ndarray:
+        """The raw vectors (N, D) of the treatment's own characterisation in one
+        generation (the SDBC's, or the task-specific ones, for the paper's)."""
+        with np.load(_individuals_path(self.path, generation)) as data:
+            if "behaviour" in data.files:
+                return np.asarray(data["behaviour"])
+            spec = self.treatment_spec.characterisation
+            key = "characterisation" if spec and spec.kind == "task" else "sdbc"
+            return np.asarray(data[key])
 
     def sdbc_generations(self) -> Iterator[np.ndarray]:
         """The raw SDBC vectors (N, D) float32 of each generation, in order."""
@@ -175,9 +195,16 @@ def load_run(path: Path, root: Path) -> RunData | RunProblem:
         return RunProblem(
             name, f"{GENERATIONS_FILE} generations are not 0..{expected - 1}"
         )
-    sdbc_names = tuple(
+    weight_names = tuple(
         h[len(WEIGHT_PREFIX) :] for h in header if h.startswith(WEIGHT_PREFIX)
     )
+    sdbc_names = weight_names
+    if expected and _individuals_path(path, 0).is_file():
+        try:
+            with np.load(_individuals_path(path, 0)) as npz:
+                sdbc_names = tuple(str(n) for n in npz["sdbc_names"])
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+            pass  # reported below, where every file is read
     try:
         length_index = sdbc_names.index(LENGTH_DIMENSION)
     except ValueError:
@@ -214,7 +241,9 @@ def load_run(path: Path, root: Path) -> RunData | RunProblem:
             return RunProblem(name, f"{where}: fitness holds NaN or infinity")
         fitness.append(f)
         steps[g] = float(np.sum(sdbc[:, length_index], dtype=np.float64)) * trials
-    return RunData(name, path, config, columns, sdbc_names, fitness, steps)
+    return RunData(
+        name, path, config, columns, sdbc_names, fitness, steps, weight_names
+    )
 
 
 @dataclass
@@ -239,17 +268,24 @@ class StudyData:
         known = [t for t in PAPER_TASKS if t in found]
         return known + sorted(found - set(known))
 
-    def of(self, task: str, treatment: Treatment | None = None) -> list[RunData]:
+    def of(
+        self, task: str, treatment: str | TreatmentSpec | None = None
+    ) -> list[RunData]:
+        """The usable runs of ``task`` (of one treatment, by name or spec)."""
+        if isinstance(treatment, TreatmentSpec):
+            treatment = treatment.name
         return [
             r
             for r in self.runs
-            if r.task == task and (treatment is None or r.treatment is treatment)
+            if r.task == task and (treatment is None or r.treatment == treatment)
         ]
 
-    def treatments(self, task: str) -> list[Treatment]:
-        """Treatments with usable runs on ``task``, in the paper's order."""
-        present = {r.treatment for r in self.of(task)}
-        return [t for t in Treatment if t in present]
+    def treatments(self, task: str) -> list[str]:
+        """Names of the treatments with usable runs on ``task``: the paper's in
+        its order, then the others in the order their runs were found."""
+        present = list(dict.fromkeys(r.treatment for r in self.of(task)))
+        paper = [t for t in PAPER_TREATMENTS if t in present]
+        return paper + [t for t in present if t not in paper]
 
 
 def load_study(root: str | Path) -> StudyData:
