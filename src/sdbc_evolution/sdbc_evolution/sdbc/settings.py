@@ -115,6 +115,11 @@ def from_mapping(cls: type, data: Any, prefix: str) -> Any:
         raise
     except (TypeError, ValueError) as error:
         message = str(error)
+        # A part's own check names the part ("scalarised: weight ..."): once is
+        # enough after the dotted key that ends with it.
+        last = where.rsplit(".", 1)[-1]
+        if where != last and message.startswith(f"{last}: "):
+            message = message[len(last) + 2 :]
         if not message.startswith(f"{where}:"):
             message = f"{where}: {message}"
         raise ConfigError(message) from None
