@@ -51,6 +51,30 @@ def test_a_genome_evaluated_live_equals_the_batched_engine(gate_escape_graph):
     assert len(lengths) > 1
 
 
+def test_a_declared_sdbc_evaluated_live_equals_the_batched_engine(gate_escape_graph):
+    from sdbc_evolution.characterise.registry import parse
+    from sdbc_evolution.graph.live_evaluator import LiveEvaluator
+    from sdbc_evolution.run.evaluators import TaskSpec, evaluate_chunk
+
+    live = gate_escape_graph
+    declared = parse({"sdbc": {"aggregation": {"frames": 3}, "state_deviation": True}})
+    spec = TaskSpec(live.task_name, live.task_config, characterisations=(declared,))
+    got = LiveEvaluator(spec, live.client).evaluate(live.genome[None], SEEDS[None])
+    expected = evaluate_chunk(spec, live.genome[None], SEEDS[None])
+    assert_same_evaluation(got, expected)
+    np.testing.assert_allclose(
+        got.behaviour(declared.key),
+        expected.behaviour(declared.key),
+        rtol=0.0,
+        atol=EQUIVALENCE_TOLERANCE,
+    )
+    counted = TaskSpec(
+        live.task_name, live.task_config, characterisations=(parse("state_count"),)
+    )
+    with pytest.raises(ValueError, match=r"'state_count' cannot be made on the live"):
+        LiveEvaluator(counted, live.client)
+
+
 def test_a_bad_genome_is_rejected_with_a_reason_and_the_controller_keeps_running(
     gate_escape_graph,
 ):

@@ -187,21 +187,43 @@ class OptionedSdbcExtractor:
     :class:`~sdbc_evolution.sdbc.messages.MessageSdbcExtractor`'s states.
     """
 
-    def __init__(self, options: SdbcOptions) -> None:
+    def __init__(
+        self, options: SdbcOptions, fixed_static_geometry: bool = True
+    ) -> None:
         self.options = options
+        self.fixed_static_geometry = fixed_static_geometry
         self._features: StepFeatures | None = None
         self._layout: _Layout | None = None
         self._aggregator: Any = None
         self._step = 0
 
     def start(self, description: TaskDescription, n_trials: int) -> None:
-        self._features = StepFeatures(description, fixed_static_geometry=True)
+        self._features = StepFeatures(
+            description, fixed_static_geometry=self.fixed_static_geometry
+        )
         self._layout = _layout(description, self.options)
         self._aggregator = make_aggregator(
             self.options.mode, self.options.frames, n_trials, len(self._layout.names)
         )
         self._n_trials = n_trials
         self._step = 0
+
+    def redescribe(self, description: TaskDescription) -> None:
+        """Continues under ``description``, which must yield the same features
+        (a group's geometry learnt from a message stream); the sums are kept.
+
+        Raises:
+            ValueError: If the features differ.
+        """
+        self._started()
+        if behaviour_features(description) != self._features.features:
+            raise ValueError(
+                f"SDBC extractor, task {description.name!r}: a new description must "
+                "keep the features of the old one"
+            )
+        self._features = StepFeatures(
+            description, fixed_static_geometry=self.fixed_static_geometry
+        )
 
     @property
     def dimension_names(self) -> tuple[str, ...]:

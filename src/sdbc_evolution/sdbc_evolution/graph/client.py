@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -53,6 +54,9 @@ from sdbc_sim.nodes.interface import (
 from sdbc_sim.task import Task
 from sdbc_sim.task_state import TaskDescription
 
+from sdbc_evolution.characterise.evaluation import SDBC, TASK
+from sdbc_evolution.characterise.registry import CharacterisationSpec
+from sdbc_evolution.characterise.sdbc import OptionedSdbcExtractor
 from sdbc_evolution.sdbc.characterisation import dimension_names
 from sdbc_evolution.sdbc.messages import MessageSdbcExtractor
 from sdbc_msgs.msg import TaskState as TaskStateMsg
@@ -65,6 +69,33 @@ DISCOVERY_GRACE = 0.5
 to discover this node (DDS discovery is not symmetric)."""
 POLL = 0.1
 """Seconds between checks of the stop flag while waiting."""
+
+
+def check_live_characterisations(
+    characterisations: tuple[CharacterisationSpec, ...],
+) -> tuple[CharacterisationSpec, ...]:
+    """The characterisations among ``characterisations`` that the client makes
+    itself: every SDBC, with any options, from the task state topic (the task's
+    own and the paper's SDBC always come with a trial).
+
+    Raises:
+        ValueError: Naming a characterisation that needs the robots' network inputs
+            and outputs: the graph's sensor readings do not say which robots are
+            still in play, so a count over them would differ from the engine's.
+    """
+    others = []
+    for spec in characterisations:
+        if spec.key in (TASK, SDBC):
+            continue
+        if spec.kind != SDBC:
+            raise ValueError(
+                f"characterisation {spec.key!r} cannot be made on the live graph: it "
+                "needs the robots' network inputs and outputs with which robots are "
+                "in play, which the graph's topics do not carry; evaluate it with "
+                "the batched engine (evaluator: local)"
+            )
+        others.append(spec)
+    return tuple(others)
 
 
 class GraphClientError(RuntimeError):
@@ -104,6 +135,8 @@ class LiveTrial:
         characterisation: (C,) its task-specific characterisation.
         length: Steps it took.
         sdbc: (D,) its raw SDBC vector, built from the task state topic.
+        behaviours: Its vector of every other characterisation asked for, by key,
+            built from the task state topic too.
     """
 
     trial_id: int
@@ -112,14 +145,22 @@ class LiveTrial:
     characterisation: np.ndarray
     length: int
     sdbc: np.ndarray
+    behaviours: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 class _TrialStream:
-    """The task state messages of one trial, characterised as they arrive."""
+    """The task state messages of one trial, characterised as they arrive (the
+    paper's SDBC, and any other characterisation a task state stream carries)."""
 
-    def __init__(self, extractor: MessageSdbcExtractor) -> None:
+    def __init__(
+        self,
+        extractor: MessageSdbcExtractor,
+        others: dict[str, MessageSdbcExtractor] | None = None,
+    ) -> None:
         self.extractor = extractor
+        self.others = dict(others or {})
         self.vector: np.ndarray | None = None
+        self.vectors: dict[str, np.ndarray] = {}
         self.steps = 0
         self.error: str | None = None
         self.done = threading.Event()
@@ -134,12 +175,14 @@ class _TrialStream:
         self.steps = msg.step
         try:
             vector = self.extractor.add(msg)
+            others = {key: e.add(msg) for key, e in self.others.items()}
         except ValueError as error:
             self.error = str(error)
             self.done.set()
             return
         if vector is not None:
             self.vector = vector
+            self.vectors = {k: v for k, v in others.items() if v is not None}
             self.done.set()
 
 
@@ -342,18 +385,41 @@ class GraphClient:
         if stream is not None:
             stream.add(msg)
 
-    def run_trial(self, seed: int) -> LiveTrial:
+    def run_trial(
+        self, seed: int, characterisations: tuple[CharacterisationSpec, ...] = ()
+    ) -> LiveTrial:
         """Runs one trial with the controllers' current genome.
+
+        Args:
+            seed: The trial's seed.
+            characterisations: Characterisations to make besides the task's and
+                the paper's SDBC; each must be one a task state stream carries
+                (:func:`check_live_characterisations`).
 
         Raises:
             TrialFailed: The simulator aborted it (its message says why), or its
                 task state stream was incomplete in every attempt.
+            ValueError: A characterisation needs what the graph does not publish.
         """
+        others = check_live_characterisations(characterisations)
         problem = ""
         for attempt in range(1, TRIAL_ATTEMPTS + 1):
             trial_id = self._next_trial_id
             self._next_trial_id += 1
-            stream = _TrialStream(MessageSdbcExtractor(self.description))
+            stream = _TrialStream(
+                MessageSdbcExtractor(self.description),
+                {
+                    spec.key: MessageSdbcExtractor(
+                        self.description,
+                        make_extractor=partial(
+                            OptionedSdbcExtractor,
+                            spec.options,
+                            fixed_static_geometry=False,
+                        ),
+                    )
+                    for spec in others
+                },
+            )
             with self._streams_lock:
                 self._streams[trial_id] = stream
             try:
@@ -382,6 +448,7 @@ class GraphClient:
                     characterisation=np.asarray(answer.characterisation),
                     length=answer.length,
                     sdbc=stream.vector,
+                    behaviours=stream.vectors,
                 )
             problem = stream.error or (
                 f"{stream.steps} task state messages for {answer.length} steps"

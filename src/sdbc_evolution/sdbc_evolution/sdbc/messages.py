@@ -21,7 +21,7 @@ Two things differ from the engine's arrays, and both are handled here:
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -75,21 +75,30 @@ class MessageSdbcExtractor:
         geometries: Geometry of groups by name, for groups that are empty in the
             first message; a group not named here learns its geometry from its
             first entity.
+        make_extractor: Makes each trial's streaming extractor (anything with
+            ``start``, ``observe``, ``redescribe`` and ``characterisations``, as
+            an SDBC with other options); by default the paper's
+            :class:`SdbcExtractor`, reading static shapes at every step.
     """
 
     def __init__(
         self,
         description: TaskDescription | None = None,
         geometries: Mapping[str, Geometry] | None = None,
+        make_extractor: Callable[[], Any] | None = None,
     ) -> None:
         self.description = description
         self.geometries = dict(geometries or {})
+        self.make_extractor = make_extractor or (
+            lambda: SdbcExtractor(fixed_static_geometry=False)
+        )
         self._unknown_geometry: set[str] = set()
         self._trials: dict[int, SdbcExtractor] = {}
 
     @property
     def dimension_names(self) -> tuple[str, ...]:
-        """Names of the vectors' dimensions (once the description is known)."""
+        """Names of the paper's SDBC dimensions (once the description is known);
+        with another ``make_extractor``, its own names apply."""
         if self.description is None:
             raise RuntimeError("message extractor: no message yet, no description")
         return dimension_names(self.description)
@@ -133,7 +142,7 @@ class MessageSdbcExtractor:
                     f"task {msg.task!r}, trial {trial_id}: its first message is step "
                     f"{msg.step}; a trial's messages must start at step 1"
                 )
-            extractor = SdbcExtractor(fixed_static_geometry=False)
+            extractor = self.make_extractor()
             extractor.start(description, 1)
             self._trials[trial_id] = extractor
         try:
