@@ -67,7 +67,13 @@ from sdbc_sim.tasks import available_tasks, find_task
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
-from sdbc_evolution.graph.client import GraphClient, GraphClientError, Stopped
+from sdbc_evolution.characterise.sdbc import sdbc_dimension_names
+from sdbc_evolution.graph.client import (
+    GraphClient,
+    GraphClientError,
+    Stopped,
+    check_live_characterisations,
+)
 from sdbc_evolution.graph.live_evaluator import LiveEvaluator
 from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import ConfigError, ExperimentConfig
@@ -260,11 +266,18 @@ class EvolutionNode(Node):
         with client.lock:
             client.set_genome(np.zeros(self.genome_length))
             trial = client.run_trial(0)
+        # A declared treatment's SDBC options name their dimensions from the task
+        # description, which the first trial's messages taught the client.
+        declared = check_live_characterisations(self.spec.characterisations)
         info = TaskInfo(
             name=self.spec.name,
             genome_length=self.genome_length,
             characterisation_size=int(trial.characterisation.shape[0]),
             sdbc_names=client.sdbc_names,
+            behaviour_names={
+                spec.key: sdbc_dimension_names(client.description, spec.options)
+                for spec in declared
+            },
         )
         self.get_logger().info(
             f"task {info.name}: learnt from a first trial: {trial.length} steps, "
