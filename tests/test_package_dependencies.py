@@ -47,6 +47,7 @@ ROSDEP_KEYS = {
     "yaml": "python3-yaml",
     # Not in rosdep's database: pip keys, defined in the root rosdep.yaml (the
     # database has python3-rosbags-pip; ours says the same).
+    "dcor": "python3-dcor-pip",
     "distributed": "python3-dask-distributed-pip",
     "minisom": "python3-minisom-pip",
     "pymunk": "python3-pymunk-pip",
