@@ -49,9 +49,14 @@ def fill_archive(experiment: Experiment, rng: np.random.Generator) -> None:
     """Fills the archive to capacity with jittered copies of the last generation."""
     last = experiment.results.individuals_path(experiment.state.generation - 1)
     with np.load(last) as data:
-        pool = data["sdbc"].astype(np.float64)
-        if experiment.config.treatment.name == "ns-ts":
-            pool = data["characterisation"].astype(np.float64)
+        # The archive holds the treatment's own raw vectors.
+        characterisation = experiment.config.treatment.characterisation
+        key = "sdbc"
+        if "behaviour" in data.files:
+            key = "behaviour"
+        elif characterisation is not None and characterisation.kind == "task":
+            key = "characterisation"
+        pool = data[key].astype(np.float64)
         fitness = data["fitness"]
     capacity = experiment.config.novelty.archive_size
     rows = rng.integers(0, pool.shape[0], capacity)
