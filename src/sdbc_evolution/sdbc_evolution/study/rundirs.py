@@ -255,12 +255,15 @@ class StudyData:
         runs: Usable runs.
         problems: Runs left out (unusable, or expected and absent).
         expected: Runs the study's preset expects (None without ``study.yaml``).
+        order: The preset's treatments by name, in its order (empty without
+            ``study.yaml``).
     """
 
     root: Path
     runs: list[RunData]
     problems: list[RunProblem]
     expected: int | None
+    order: tuple[str, ...] = ()
 
     def tasks(self) -> list[str]:
         """Tasks with at least one usable run, the paper's first, in its order."""
@@ -281,11 +284,13 @@ class StudyData:
         ]
 
     def treatments(self, task: str) -> list[str]:
-        """Names of the treatments with usable runs on ``task``: the paper's in
-        its order, then the others in the order their runs were found."""
+        """Names of the treatments with usable runs on ``task``: in the preset's
+        order, or else the paper's four in its order, then the others in the order
+        their runs were found."""
         present = list(dict.fromkeys(r.treatment for r in self.of(task)))
-        paper = [t for t in PAPER_TREATMENTS if t in present]
-        return paper + [t for t in present if t not in paper]
+        first = [t for t in (*self.order, *PAPER_TREATMENTS) if t in present]
+        first = list(dict.fromkeys(first))
+        return first + [t for t in present if t not in first]
 
 
 def load_study(root: str | Path) -> StudyData:
@@ -302,6 +307,7 @@ def load_study(root: str | Path) -> StudyData:
         else:
             problems.append(loaded)
     expected = None
+    order: tuple[str, ...] = ()
     if (root / STUDY_FILE).is_file():
         try:
             preset = load_preset_file(root / STUDY_FILE)
@@ -310,6 +316,7 @@ def load_study(root: str | Path) -> StudyData:
         else:
             plan = study_plan(preset, root)
             expected = len(plan)
+            order = tuple(t.name for t in preset.treatments)
             seen = {r.path.resolve() for r in runs} | {
                 (root / p.name).resolve() for p in problems
             }
@@ -323,4 +330,4 @@ def load_study(root: str | Path) -> StudyData:
             f"no usable run under {root}"
             + "".join(f"\n  {p.name}: {p.reason}" for p in problems)
         )
-    return StudyData(root, runs, problems, expected)
+    return StudyData(root, runs, problems, expected, order)
