@@ -289,7 +289,11 @@ def _settings_class(annotation: Any) -> Any:
 
 def to_plain(value: Any) -> Any:
     """Plain data (YAML-ready) of settings: dataclasses become mappings, enums
-    their values, tuples lists."""
+    their values, tuples lists; a value with a declaration syntax of its own (a
+    treatment) gives that, through its ``to_plain`` method."""
+    own = getattr(value, "to_plain", None)
+    if callable(own) and not isinstance(value, type):
+        return own()
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return {
             f.name: to_plain(getattr(value, f.name)) for f in dataclasses.fields(value)

@@ -16,8 +16,8 @@ from sdbc_evolution.characterise.sdbc import (
 )
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_evolution.sdbc.features import StepFeatures
-from sdbc_evolution.sdbc.settings import ConfigError
 from sdbc_sim.engine import run_batch
+from sdbc_sim.settings import SettingsError
 from sdbc_sim.tasks import make_task
 
 
@@ -119,13 +119,15 @@ def test_ignored_group_drops_every_feature_that_involves_it(predator_prey) -> No
 
 
 def test_bad_declarations_name_the_part() -> None:
-    with pytest.raises(ConfigError, match=r"characterisation.sdbc.*aggregation"):
+    with pytest.raises(SettingsError, match=r"characterisation.sdbc.*aggregation"):
         parse({"sdbc": {"aggregation": "median"}})
-    with pytest.raises(ConfigError, match=r"frames"):
+    with pytest.raises(SettingsError, match=r"frames"):
         parse({"sdbc": {"aggregation": {"frames": 0}}})
-    with pytest.raises(ConfigError, match=r"unknown key.*characterisation.sdbc.colour"):
+    with pytest.raises(
+        SettingsError, match=r"characterisation.sdbc.colour: unknown key"
+    ):
         parse({"sdbc": {"colour": 1}})
-    with pytest.raises(ConfigError, match=r"unknown characterisation 'sdbd'.*sdbc"):
+    with pytest.raises(SettingsError, match=r"unknown characterisation 'sdbd'.*sdbc"):
         parse("sdbd")
     gate = make_task("gate_escape").description
     with pytest.raises(ValueError, match=r"ignore_groups.*'Nope'"):

@@ -18,10 +18,14 @@ from sdbc_evolution.ga.treatments import (
     score_generation,
 )
 from sdbc_evolution.run.cli import main
-from sdbc_evolution.run.config import config_from_dict, dump_config, load_config
+from sdbc_evolution.run.config import (
+    ConfigError,
+    config_from_dict,
+    dump_config,
+    load_config,
+)
 from sdbc_evolution.run.evaluators import Evaluation
 from sdbc_evolution.run.results import TIME_COLUMNS, read_generations
-from sdbc_evolution.sdbc.settings import ConfigError
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 
@@ -55,10 +59,13 @@ def test_a_declaration_round_trips_through_the_configuration() -> None:
 @pytest.mark.parametrize(
     ("declaration", "message"),
     [
-        ({"name": "x", "ranking": "nsga2"}, r"'x'.*ranking 'nsga2' scores novelty"),
+        (
+            {"name": "x", "ranking": "nsga2"},
+            r"treatment.ranking: 'nsga2' scores novelty",
+        ),
         (
             {"name": "x", "characterisation": "sdbc", "ranking": "fitness"},
-            r"ranking 'fitness' ignores novelty",
+            r"treatment.ranking: 'fitness' ignores novelty",
         ),
         (
             {"name": "x", "transforms": ["standardise"], "ranking": "fitness"},
@@ -68,7 +75,7 @@ def test_a_declaration_round_trips_through_the_configuration() -> None:
             {"name": "ns-sd", "characterisation": "task", "ranking": "nsga2"},
             r"the name of a paper treatment",
         ),
-        ({"name": "a b", "characterisation": "task"}, r"treatment name 'a b'"),
+        ({"name": "a b", "characterisation": "task"}, r"treatment.name: 'a b'"),
         ({"characterisation": "task"}, r"treatment.name: a declared treatment needs"),
         ({"name": "x", "ranks": "nsga2"}, r"unknown key\(s\) \['ranks'\]"),
         (
@@ -81,7 +88,7 @@ def test_a_declaration_round_trips_through_the_configuration() -> None:
         ),
         (
             {"name": "x", "characterisation": "sdbc", "transforms": [{"weight": 1}]},
-            r"treatment.transforms\[0\].weight",
+            r"treatment.transforms.0.weight",
         ),
         ("ns-xx", r"'ns-xx' is not a preset"),
     ],

@@ -7,7 +7,7 @@ import pytest
 from sdbc_evolution.ga.rankings import parse_ranking
 from sdbc_evolution.ga.rankings.nsga2 import nsga2_order
 from sdbc_evolution.ga.rankings.others import local_competition
-from sdbc_evolution.sdbc.settings import ConfigError
+from sdbc_sim.settings import SettingsError
 
 FITNESS = np.array([0.2, 0.9, 0.5, 0.9, 0.1])
 NOVELTY = np.array([3.0, 1.0, 2.0, 0.5, 4.0])
@@ -71,11 +71,11 @@ def test_local_competition_by_hand() -> None:
 
 
 def test_bad_declarations_name_the_part() -> None:
-    with pytest.raises(ConfigError, match=r"unknown ranking 'nsga3'"):
+    with pytest.raises(SettingsError, match=r"unknown ranking 'nsga3'"):
         parse_ranking("nsga3")
-    with pytest.raises(ConfigError, match=r"ranking.scalarised.*weight"):
+    with pytest.raises(SettingsError, match=r"ranking.scalarised.*weight"):
         parse_ranking({"scalarised": {"weight": 2}})
-    with pytest.raises(ConfigError, match=r"ranking.nslc.*k"):
+    with pytest.raises(SettingsError, match=r"ranking.nslc.*k"):
         parse_ranking({"nslc": {"k": 0}})
-    with pytest.raises(ConfigError, match=r"unknown key.*ranking.fitness.weight"):
+    with pytest.raises(SettingsError, match=r"ranking.fitness.weight: unknown key"):
         parse_ranking({"fitness": {"weight": 1}})

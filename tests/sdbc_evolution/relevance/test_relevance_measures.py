@@ -14,9 +14,9 @@ from sdbc_evolution.relevance.measures import (
     chance_information,
     parse_relevance,
 )
-from sdbc_evolution.sdbc.settings import ConfigError
 from sdbc_evolution.sdbc.weighting import WeightingSettings, mutual_information
 from sdbc_evolution.transforms.pipeline import apply_transforms, parse_transforms
+from sdbc_sim.settings import SettingsError
 from sklearn.metrics import mutual_info_score
 
 SETTINGS = WeightingSettings()
@@ -148,17 +148,17 @@ def test_every_measure_draws_one_integer() -> None:
 
 
 def test_bad_declarations_name_the_part() -> None:
-    with pytest.raises(ConfigError, match=r"unknown relevance measure 'mutual'"):
+    with pytest.raises(SettingsError, match=r"unknown relevance measure 'mutual'"):
         parse_relevance("mutual")
-    with pytest.raises(ConfigError, match=r"relevance.mrmr.redundancy"):
+    with pytest.raises(SettingsError, match=r"relevance.mrmr.redundancy"):
         parse_relevance({"mrmr": {"redundancy": "max"}})
-    with pytest.raises(ConfigError, match=r"transforms\[0\].weight.*smoothing"):
+    with pytest.raises(SettingsError, match=r"transforms.0.weight.smoothing"):
         parse_transforms([{"weight": {"smoothing": 1.5}}])
-    with pytest.raises(ConfigError, match=r"weight must come after standardise"):
+    with pytest.raises(SettingsError, match=r"weight must come after standardise"):
         parse_transforms(["weight", "standardise"])
-    with pytest.raises(ConfigError, match=r"unknown transform 'scale'"):
+    with pytest.raises(SettingsError, match=r"unknown transform 'scale'"):
         parse_transforms(["scale"])
-    with pytest.raises(ConfigError, match=r"appears twice"):
+    with pytest.raises(SettingsError, match=r"appears twice"):
         parse_transforms(["standardise", "standardise"])
 
 

@@ -28,7 +28,7 @@ from sdbc_evolution.characterise.sensor_effector import (
     StateCountOptions,
 )
 from sdbc_evolution.characterise.task import TaskCharacteriser, TaskOptions
-from sdbc_evolution.sdbc.settings import changed_options, declared_part
+from sdbc_evolution.sdbc.declared import changed_options, declared_part
 
 
 @dataclass(frozen=True)
@@ -112,7 +112,8 @@ def parse(declaration: Any, where: str = "characterisation") -> Characterisation
     """A spec from ``kind`` or ``{kind: {option: value, ...}}``.
 
     Raises:
-        ConfigError: Unknown kind or bad options, naming ``where`` and the option.
+        SettingsError: Unknown kind or bad options, naming ``where`` and the
+            option.
     """
     if isinstance(declaration, CharacterisationSpec):
         return declaration

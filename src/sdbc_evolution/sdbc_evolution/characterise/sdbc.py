@@ -22,10 +22,11 @@ too (per trial it keeps the mode's running sums, never the trajectory).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.settings import check, settings
 from sdbc_sim.task_state import TaskDescription, TaskState, validate_task_state
 
 from sdbc_evolution.characterise.aggregation import MODES, make_aggregator, mode_names
@@ -39,7 +40,7 @@ from sdbc_evolution.sdbc.features import (
 )
 
 
-@dataclass(frozen=True)
+@settings
 class SdbcOptions:
     """How the SDBC is made; the defaults are the paper's."""
 
@@ -49,30 +50,34 @@ class SdbcOptions:
     """Add each group's per-attribute standard deviation over its entities."""
     relations: bool = False
     """Add the difference of same-named attributes between two groups."""
-    ignore_groups: tuple[str, ...] = field(default_factory=tuple)
+    ignore_groups: tuple[str, ...] = ()
     """Groups left out, by name."""
 
     def __post_init__(self) -> None:
         aggregation = self.aggregation
+        modes = [m for m in MODES if m != "frames"]
         if isinstance(aggregation, dict):
-            if set(aggregation) != {"frames"}:
-                raise ValueError(
-                    f"sdbc: aggregation {aggregation!r} must be one of "
-                    f"{[m for m in MODES if m != 'frames']} or {{frames: N}}"
-                )
-            frames = aggregation["frames"]
-            if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
-                raise ValueError(
-                    f"sdbc: aggregation frames {frames!r} must be an integer >= 1"
-                )
-        elif aggregation not in MODES or aggregation == "frames":
-            raise ValueError(
-                f"sdbc: aggregation {aggregation!r} must be one of "
-                f"{[m for m in MODES if m != 'frames']} or {{frames: N}}"
+            check(
+                set(aggregation) == {"frames"},
+                "aggregation",
+                f"{aggregation!r} must be one of {modes} or {{frames: N}}",
             )
-        object.__setattr__(self, "ignore_groups", tuple(self.ignore_groups))
-        if len(set(self.ignore_groups)) != len(self.ignore_groups):
-            raise ValueError(f"sdbc: ignore_groups {self.ignore_groups} has duplicates")
+            check(
+                aggregation["frames"] >= 1,
+                "aggregation.frames",
+                f"{aggregation['frames']!r} must be an integer >= 1",
+            )
+        else:
+            check(
+                aggregation in modes,
+                "aggregation",
+                f"{aggregation!r} must be one of {modes} or {{frames: N}}",
+            )
+        check(
+            len(set(self.ignore_groups)) == len(self.ignore_groups),
+            "ignore_groups",
+            f"{list(self.ignore_groups)} has duplicates",
+        )
 
     @property
     def mode(self) -> str:
@@ -124,7 +129,7 @@ def _layout(description: TaskDescription, options: SdbcOptions) -> _Layout:
     deviation: list[tuple[int, int]] = []
     if options.state_deviation:
         for g, spec in enumerate(groups):
-            if g in ignored or spec.is_static or spec.max_size < 2:
+            if g in ignored or spec.static or spec.max_size < 2:
                 continue
             for a, attribute in enumerate(spec.attributes):
                 deviation.append((g, a))

@@ -16,10 +16,10 @@ A controller's vector is the mean over its trials, as for every characterisation
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from sdbc_sim.settings import Field, settings
 from sdbc_sim.task_state import TaskDescription, TaskState
 
 from sdbc_evolution.characterise.base import Characteriser, per_controller
@@ -33,23 +33,17 @@ _HASH_SEED = 2013
 in every run and process)."""
 
 
-@dataclass(frozen=True)
+@settings
 class StateCountOptions:
     """Discretisation of the sensor-effector state count."""
 
-    levels: int = 2
+    levels: Annotated[int, Field(ge=2)] = 2
     """Bins per sensor and effector value (the GECCO 2013 paper: 2)."""
-    max_states: int = 1024
+    max_states: Annotated[int, Field(ge=2)] = 1024
     """Most dimensions; more possible states are hashed into this many buckets."""
 
-    def __post_init__(self) -> None:
-        if self.levels < 2:
-            raise ValueError(f"state_count: levels {self.levels} must be >= 2")
-        if self.max_states < 2:
-            raise ValueError(f"state_count: max_states {self.max_states} must be >= 2")
 
-
-@dataclass(frozen=True)
+@settings
 class SensorEffectorMeanOptions:
     """The mean sensor-effector vector has no options."""
 

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.settings import settings
 
 from sdbc_evolution.characterise.base import Characteriser
 
 
-@dataclass(frozen=True)
+@settings
 class TaskOptions:
     """The task-specific characterisation has no options."""
 

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.settings import SettingsError, check
 
 from sdbc_evolution.characterise.evaluation import Evaluation
 from sdbc_evolution.characterise.registry import (
@@ -48,7 +49,7 @@ from sdbc_evolution.characterise.registry import parse as parse_characterisation
 from sdbc_evolution.ga.archive import NoveltyArchive
 from sdbc_evolution.ga.novelty import NoveltyConfig, novelty_scores
 from sdbc_evolution.ga.rankings import NoOptions, RankingSpec, parse_ranking
-from sdbc_evolution.sdbc.settings import ConfigError
+from sdbc_evolution.sdbc.declared import at
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 from sdbc_evolution.transforms.pipeline import (
@@ -82,34 +83,38 @@ class TreatmentSpec:
     ranking: RankingSpec
 
     def __post_init__(self) -> None:
-        where = f"treatment {self.name!r}"
-        if not isinstance(self.name, str) or not NAME_PATTERN.match(self.name):
-            raise ConfigError(
-                f"treatment name {self.name!r}: letters, digits and . _ + - only, "
-                "starting with a letter or digit"
-            )
+        # Paths relative to the declaration; the caller's where is added on top.
+        check(
+            isinstance(self.name, str) and bool(NAME_PATTERN.match(self.name)),
+            "name",
+            f"{self.name!r}: letters, digits and . _ + - only, starting with a "
+            "letter or digit",
+        )
         if self.characterisation is None:
-            if self.ranking.uses_novelty:
-                raise ConfigError(
-                    f"{where}: ranking {self.ranking.name!r} scores novelty, which "
-                    "needs a characterisation"
-                )
-            if self.transforms:
-                raise ConfigError(
-                    f"{where}: transforms need a characterisation to transform"
-                )
-        elif not self.ranking.uses_novelty:
-            raise ConfigError(
-                f"{where}: ranking {self.ranking.name!r} ignores novelty; declare "
-                "characterisation: none"
+            check(
+                not self.ranking.uses_novelty,
+                "ranking",
+                f"{self.ranking.name!r} scores novelty, which needs a characterisation",
             )
-        if self.name in PRESET_DECLARATIONS and self.to_mapping() != _preset_mapping(
-            self.name
-        ):
-            raise ConfigError(
-                f"{where}: the name of a paper treatment; choose another name for "
-                "a different declaration"
+            check(
+                not self.transforms,
+                "transforms",
+                "transforms need a characterisation to transform",
             )
+        else:
+            check(
+                self.ranking.uses_novelty,
+                "ranking",
+                f"{self.ranking.name!r} ignores novelty; declare characterisation: "
+                "none",
+            )
+        check(
+            self.name not in PRESET_DECLARATIONS
+            or self.to_mapping() == _preset_mapping(self.name),
+            "name",
+            f"{self.name!r} is the name of a paper treatment; choose another name "
+            "for a different declaration",
+        )
 
     @property
     def weights(self) -> bool:
@@ -140,11 +145,6 @@ class TreatmentSpec:
     def to_plain(self) -> str | dict[str, Any]:
         """YAML-ready: a preset's name, or the declaration."""
         return self.name if self.is_paper else self.to_mapping()
-
-    @classmethod
-    def from_plain(cls, value: Any, where: str = "treatment") -> TreatmentSpec:
-        """See :func:`parse_treatment`."""
-        return parse_treatment(value, where)
 
 
 PRESET_DECLARATIONS: dict[str, dict[str, Any]] = {
@@ -185,56 +185,63 @@ def _preset_mapping(name: str) -> dict[str, Any]:
 
 def _build(name: str, data: dict[str, Any], where: str) -> TreatmentSpec:
     characterisation = data.get("characterisation")
-    return TreatmentSpec(
-        name=name,
-        characterisation=None
-        if characterisation in (None, "none")
-        else parse_characterisation(characterisation, f"{where}.characterisation"),
-        transforms=parse_transforms(
-            data.get("transforms") or [], f"{where}.transforms"
-        ),
-        ranking=parse_ranking(data.get("ranking", "nsga2"), f"{where}.ranking"),
-    )
+    try:
+        return TreatmentSpec(
+            name=name,
+            characterisation=None
+            if characterisation in (None, "none")
+            else parse_characterisation(characterisation, "characterisation"),
+            transforms=parse_transforms(data.get("transforms") or [], "transforms"),
+            ranking=parse_ranking(data.get("ranking", "nsga2"), "ranking"),
+        )
+    except SettingsError as error:
+        # Every path so far is relative to the declaration.
+        raise (error.prefixed(where) if where else error) from None
 
 
 PRESETS: dict[str, TreatmentSpec] = {}
 
 
-def parse_treatment(value: Any, where: str = "treatment") -> TreatmentSpec:
+def parse_treatment(value: Any, where: str = "") -> TreatmentSpec:
     """A treatment from a preset's name or a declaration mapping.
 
+    Args:
+        value: The declaration.
+        where: Its dotted path, for messages (empty: the caller adds it, as the
+            configuration's ``treatment`` field does).
+
     Raises:
-        ConfigError: Unknown preset, unknown keys, or a bad part, naming it.
+        SettingsError: Unknown preset, unknown keys, or a bad part, naming it.
     """
     if isinstance(value, TreatmentSpec):
         return value
     if isinstance(value, str):
         if value not in PRESET_DECLARATIONS:
-            raise ConfigError(
-                f"{where}: {value!r} is not a preset ({list(PRESET_DECLARATIONS)}); "
-                "declare other treatments as a mapping with keys "
-                f"{list(KEYS)}"
+            raise SettingsError.of(
+                (
+                    (
+                        where,
+                        f"{value!r} is not a preset ({list(PRESET_DECLARATIONS)}); "
+                        "declare other treatments as a mapping with keys "
+                        f"{list(KEYS)}",
+                    ),
+                )
             )
         return PRESETS[value]
     if not isinstance(value, dict):
-        raise ConfigError(
-            f"{where}: expected a preset's name or a mapping, got {value!r}"
+        raise SettingsError.of(
+            ((where, f"expected a preset's name or a mapping, got {value!r}"),)
         )
     unknown = sorted(str(k) for k in value if k not in KEYS)
     if unknown:
-        raise ConfigError(
-            f"{where}: unknown key(s) {unknown}; a treatment has {list(KEYS)}"
+        raise SettingsError.of(
+            ((where, f"unknown key(s) {unknown}; a treatment has {list(KEYS)}"),)
         )
     if "name" not in value:
-        raise ConfigError(f"{where}.name: a declared treatment needs a name")
-    name = value["name"]
-    try:
-        return _build(name, value, f"{where}")
-    except ConfigError as error:
-        message = str(error)
-        raise ConfigError(
-            message if message.startswith(where) else f"{where}: {message}"
-        ) from None
+        raise SettingsError.of(
+            ((at(where, "name"), "a declared treatment needs a name"),)
+        )
+    return _build(value["name"], value, where)
 
 
 for _name, _declaration in PRESET_DECLARATIONS.items():

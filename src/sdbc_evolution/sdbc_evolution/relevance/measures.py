@@ -36,9 +36,10 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+from sdbc_sim.settings import PositiveInt, settings
 from threadpoolctl import threadpool_limits
 
-from sdbc_evolution.sdbc.settings import changed_options, declared_part
+from sdbc_evolution.sdbc.declared import changed_options, declared_part
 from sdbc_evolution.sdbc.weighting import (
     WeightingSettings,
     _validated,
@@ -76,29 +77,25 @@ def chance_information(
     )
 
 
-@dataclass(frozen=True)
+@settings
 class MiOptions:
     """The paper's mutual information has no options beyond ``weighting``."""
 
 
-@dataclass(frozen=True)
+@settings
 class MiChanceOptions:
     """Chance-corrected mutual information."""
 
-    shuffles: int = 1
+    shuffles: PositiveInt = 1
     """Fitness permutations averaged for the chance level."""
 
-    def __post_init__(self) -> None:
-        if self.shuffles < 1:
-            raise ValueError(f"mi_chance: shuffles {self.shuffles} must be >= 1")
 
-
-@dataclass(frozen=True)
+@settings
 class CorrelationOptions:
     """Correlations have no options."""
 
 
-@dataclass(frozen=True)
+@settings
 class MrmrOptions:
     """Redundancy-aware selection."""
 
@@ -262,7 +259,7 @@ def parse_relevance(declaration: Any, where: str = "relevance") -> RelevanceSpec
     """A spec from ``name`` or ``{name: {option: value}}``.
 
     Raises:
-        ConfigError: Unknown measure or bad options, naming ``where``.
+        SettingsError: Unknown measure or bad options, naming ``where``.
     """
     if isinstance(declaration, RelevanceSpec):
         return declaration

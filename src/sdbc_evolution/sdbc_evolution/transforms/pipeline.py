@@ -19,12 +19,13 @@ the weights), and each transform appears at most once.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from sdbc_sim.settings import Field, SettingsError, settings
 
 from sdbc_evolution.relevance.measures import RelevanceSpec, parse_relevance
-from sdbc_evolution.sdbc.settings import ConfigError, declared_part
+from sdbc_evolution.sdbc.declared import at, declared_part
 from sdbc_evolution.sdbc.standardise import StandardisationSettings, standardise
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 
@@ -32,30 +33,28 @@ TRANSFORMS = ("standardise", "weight")
 """Transform names, in the only order they may come."""
 
 
-@dataclass(frozen=True)
+@settings
 class StandardiseOptions:
     """Standardisation takes its settings from the run's ``standardisation``."""
 
 
-@dataclass(frozen=True)
+@settings
 class WeightOptions:
     """Relevance weighting."""
 
     relevance: str | dict[str, Any] = "mi"
     """The relevance measure: a name or ``{name: options}``."""
-    smoothing: float = 0.0
+    smoothing: Annotated[float, Field(ge=0, lt=1)] = 0.0
     """s in [0, 1): the share of the weights in force kept at each update (0, the
     paper: none)."""
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.smoothing < 1.0:
-            raise ValueError(f"weight: smoothing {self.smoothing} must be in [0, 1)")
-        parse_relevance(self.relevance, "weight.relevance")
+        parse_relevance(self.relevance, "relevance")
 
     @property
     def measure(self) -> RelevanceSpec:
         """The parsed relevance measure."""
-        return parse_relevance(self.relevance, "weight.relevance")
+        return parse_relevance(self.relevance, "relevance")
 
 
 _OPTIONS = {"standardise": StandardiseOptions, "weight": WeightOptions}
@@ -86,29 +85,34 @@ def parse_transforms(
     """Transform specs from a list of ``name`` or ``{name: options}``.
 
     Raises:
-        ConfigError: Unknown transform, bad options, a repeated transform or
+        SettingsError: Unknown transform, bad options, a repeated transform or
             weighting before standardisation, naming the part.
     """
     if declaration is None:
         return ()
     if not isinstance(declaration, (list, tuple)):
-        raise ConfigError(
-            f"{where}: expected a list of transforms, got {declaration!r}"
+        raise SettingsError.of(
+            ((where, f"expected a list of transforms, got {declaration!r}"),)
         )
     specs: list[TransformSpec] = []
     for i, item in enumerate(declaration):
-        here = f"{where}[{i}]"
         if isinstance(item, TransformSpec):
             specs.append(item)
             continue
+        here = at(where, str(i))
         specs.append(TransformSpec(*declared_part(item, _OPTIONS, "transform", here)))
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
-        raise ConfigError(f"{where}: a transform appears twice in {names}")
+        raise SettingsError.of(((where, f"a transform appears twice in {names}"),))
     if names != sorted(names, key=TRANSFORMS.index):
-        raise ConfigError(
-            f"{where}: weight must come after standardise (got {names}); "
-            "standardising weighted values would undo the weights"
+        raise SettingsError.of(
+            (
+                (
+                    where,
+                    f"weight must come after standardise (got {names}); "
+                    "standardising weighted values would undo the weights",
+                ),
+            )
         )
     return tuple(specs)
 

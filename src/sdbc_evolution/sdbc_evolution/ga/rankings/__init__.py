@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.settings import Fraction, PositiveInt, settings
 
 from sdbc_evolution.ga.rankings.nsga2 import nsga2_order
 from sdbc_evolution.ga.rankings.others import (
@@ -29,39 +30,31 @@ from sdbc_evolution.ga.rankings.others import (
     novelty_ranking,
     scalarised_ranking,
 )
-from sdbc_evolution.sdbc.settings import changed_options, declared_part
+from sdbc_evolution.sdbc.declared import changed_options, declared_part
 
 
-@dataclass(frozen=True)
+@settings
 class NoOptions:
     """This ranking has no options."""
 
 
-@dataclass(frozen=True)
+@settings
 class NslcOptions:
     """Novelty search with local competition."""
 
-    k: int | None = None
+    k: PositiveInt | None = None
     """Neighbours of the local competition; None: the novelty metric's k."""
 
-    def __post_init__(self) -> None:
-        if self.k is not None and self.k < 1:
-            raise ValueError(f"nslc: k {self.k} must be >= 1")
 
-
-@dataclass(frozen=True)
+@settings
 class ScalarisedOptions:
     """Linear scalarisation."""
 
-    weight: float = 0.5
+    weight: Fraction = 0.5
     """w, the share of (normalised) fitness; 1 - w goes to novelty."""
 
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.weight <= 1.0:
-            raise ValueError(f"scalarised: weight {self.weight} must be in [0, 1]")
 
-
-@dataclass(frozen=True)
+@settings
 class MinimalCriterionOptions:
     """Minimal-criterion novelty search."""
 
@@ -154,7 +147,7 @@ def parse_ranking(declaration: Any, where: str = "ranking") -> RankingSpec:
     """A spec from ``name`` or ``{name: {option: value}}``.
 
     Raises:
-        ConfigError: Unknown ranking or bad options, naming ``where``.
+        SettingsError: Unknown ranking or bad options, naming ``where``.
     """
     if isinstance(declaration, RankingSpec):
         return declaration
