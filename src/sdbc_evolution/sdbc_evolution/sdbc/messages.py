@@ -93,7 +93,8 @@ class MessageSdbcExtractor:
             lambda: SdbcExtractor(fixed_static_geometry=False)
         )
         self._unknown_geometry: set[str] = set()
-        self._trials: dict[int, SdbcExtractor] = {}
+        # The paper's SdbcExtractor, or what make_extractor makes.
+        self._trials: dict[int, Any] = {}
 
     @property
     def dimension_names(self) -> tuple[str, ...]:
