@@ -22,6 +22,14 @@ class Characteriser(ABC):
     """Whether ``run_batch`` should hand it the task states (and, with
     ``observe_network``, the network arrays)."""
 
+    def start(self, description: Any, n_trials: int) -> None:
+        """Called by the engine before a batch (an observer's first call)."""
+        return None  # a characteriser that keeps no state needs no start
+
+    def observe(self, state: Any) -> None:
+        """Called by the engine after every step; by default nothing to do."""
+        return None  # a characteriser of network arrays reads no task state
+
     @abstractmethod
     def names(self, task: Any) -> tuple[str, ...]:
         """The human name of every dimension, for ``task``.

@@ -139,7 +139,7 @@ def _layout(description: TaskDescription, options: SdbcOptions) -> _Layout:
         mean_state = {
             (feature.group, groups[feature.group].attributes[feature.attribute]): f
             for f, feature in enumerate(features)
-            if feature.kind is FeatureKind.MEAN_STATE
+            if feature.kind is FeatureKind.MEAN_STATE and feature.attribute is not None
         }
         for g, spec in enumerate(groups):
             for h in range(g + 1, len(groups)):
@@ -220,8 +220,7 @@ class OptionedSdbcExtractor:
         Raises:
             ValueError: If the features differ.
         """
-        self._started()
-        if behaviour_features(description) != self._features.features:
+        if behaviour_features(description) != self._step_features().features:
             raise ValueError(
                 f"SDBC extractor, task {description.name!r}: a new description must "
                 "keep the features of the old one"
@@ -241,9 +240,14 @@ class OptionedSdbcExtractor:
             raise RuntimeError("SDBC extractor: start() was not called")
         return self._layout
 
+    def _step_features(self) -> StepFeatures:
+        if self._features is None:
+            raise RuntimeError("SDBC extractor: start() was not called")
+        return self._features
+
     def observe(self, state: TaskState) -> None:
         layout = self._started()
-        features = self._features
+        features = self._step_features()
         description = features.description
         validate_task_state(description, state, self._n_trials)
         if state.step != self._step + 1:

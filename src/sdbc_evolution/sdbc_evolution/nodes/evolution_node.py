@@ -269,14 +269,21 @@ class EvolutionNode(Node):
         # A declared treatment's SDBC options name their dimensions from the task
         # description, which the first trial's messages taught the client.
         declared = check_live_characterisations(self.spec.characterisations)
+        description = client.description
+        if declared and description is None:
+            raise GraphClientError(
+                "the first trial taught no task description: a declared SDBC "
+                "cannot name its dimensions"
+            )
         info = TaskInfo(
             name=self.spec.name,
             genome_length=self.genome_length,
             characterisation_size=int(trial.characterisation.shape[0]),
             sdbc_names=client.sdbc_names,
             behaviour_names={
-                spec.key: sdbc_dimension_names(client.description, spec.options)
+                spec.key: sdbc_dimension_names(description, spec.options)
                 for spec in declared
+                if description is not None
             },
         )
         self.get_logger().info(

@@ -405,7 +405,9 @@ class Experiment:
                 f"the evaluator returned fitness {evaluation.fitness.shape} for {n} "
                 "genomes"
             )
-        keys = {SDBC} | {self._behaviour_key} - {None}
+        keys = {SDBC}
+        if self._behaviour_key is not None:
+            keys.add(self._behaviour_key)
         for key in sorted(keys):
             d = len(self.info.names_of(key))
             got = evaluation.behaviour(key).shape

@@ -40,6 +40,7 @@ def declared_part(
         SettingsError: Not a name or a one-key mapping, an unknown name, or bad
             options, naming the path (and the option).
     """
+    options: Any
     if isinstance(declaration, str):
         name, options = declaration, {}
     elif isinstance(declaration, dict) and len(declaration) == 1:

@@ -125,6 +125,7 @@ class RankingSpec:
         name, options = self.name, self.options
         if name == "fitness":
             return fitness_ranking(fitness)
+        novelty = _given(novelty, "novelty", name)
         if name == "nsga2":
             order, front, _ = nsga2_order(
                 np.column_stack([fitness, novelty]), tie_break=tie_break
@@ -134,13 +135,23 @@ class RankingSpec:
             return novelty_ranking(novelty)
         if name == "nslc":
             competition = local_competition(
-                population, archive, fitness, archive_fitness, options.k or k
+                _given(population, "behaviour vectors", name),
+                _given(archive, "archive vectors", name),
+                fitness,
+                _given(archive_fitness, "archive fitness", name),
+                options.k or k,
             )
             order, front, _ = nsga2_order(np.column_stack([novelty, competition]))
             return order, front
         if name == "scalarised":
             return scalarised_ranking(fitness, novelty, options.weight)
         return minimal_criterion_ranking(fitness, novelty, options.criterion)
+
+
+def _given(array: np.ndarray | None, what: str, ranking: str) -> np.ndarray:
+    if array is None:
+        raise ValueError(f"ranking {ranking!r} needs the {what}")
+    return array
 
 
 def parse_ranking(declaration: Any, where: str = "ranking") -> RankingSpec:
