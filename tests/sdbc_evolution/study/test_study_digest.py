@@ -172,7 +172,10 @@ def test_a_bad_digest_is_refused_with_the_problem_named(
     assert "'curve' has shape" in refused(short)
 
     bad_som = copy()
-    _damage_npz(bad_som / "gate_escape.npz", {"som_treatments": np.array(["nope"])})
+    with np.load(bad_som / "gate_escape.npz") as data:
+        # Same length as the real list, so that the names, not the shapes, are wrong.
+        unknown = np.array([f"nope{i}" for i in range(len(data["som_treatments"]))])
+    _damage_npz(bad_som / "gate_escape.npz", {"som_treatments": unknown})
     assert "'som_treatments'" in refused(bad_som)
 
     # Through the command line: exit status 2, the problem on stderr.
