@@ -23,11 +23,22 @@ def env_after_sourcing(extra: dict[str, str]) -> dict[str, str]:
     return dict(item.split("=", 1) for item in out.split("\0") if "=" in item)
 
 
-def test_env_defaults_discovery_to_localhost():
+def test_env_keeps_discovery_on_loopback_by_default():
+    # Without a profile of the user's, env.sh installs the loopback-only Fast DDS
+    # profile; LOCALHOST would make rmw_fastrtps add sockets on 0.0.0.0 beside it
+    # (tests/test_sockets.py), so the range is left to the profile.
     env = env_after_sourcing({})
-    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"].endswith(
+        "scripts/fastdds_localhost.xml"
+    )
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
     assert env["AMENT_PREFIX_PATH"].endswith(str(ROOT / ".venv"))
     assert env["ROS_HOME"] == str(ROOT / ".ros")
+
+
+def test_env_without_the_profile_defaults_discovery_to_localhost():
+    env = env_after_sourcing({"FASTRTPS_DEFAULT_PROFILES_FILE": ""})
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
 
 def test_env_keeps_a_users_explicit_choice():
