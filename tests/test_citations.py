@@ -171,7 +171,7 @@ def test_every_path_cited_in_readme_and_docs_exists() -> None:
 @pytest.mark.parametrize(
     ("text", "where", "expected"),
     [
-        ("see ../shared/paper/x.tex", "README.md", ["../shared"]),
+        ("see ../elsewhere/paper/x.tex", "README.md", ["../elsewhere"]),
         ("see ../../x.md", "docs/a.md", ["../../x.md"]),
         ("see ../x.md", "docs/a.md", []),
         ("(SPEC.md, Evolution)", "src/a.py", ["SPEC.md"]),
