@@ -124,6 +124,7 @@ def scripted_trials(with_gap: bool = True) -> list:
 
 def main() -> int:
     import rclpy
+    from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -135,13 +136,16 @@ def main() -> int:
     qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     publisher = node.create_publisher(TaskState, "task_state", qos)
     try:
-        while publisher.get_subscription_count() == 0:
+        while rclpy.ok() and publisher.get_subscription_count() == 0:
             time.sleep(0.05)
         for msg in scripted_trials():
             publisher.publish(msg)
         while rclpy.ok():
             rclpy.spin_once(node, timeout_sec=0.5)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
+        # rclpy's SIGINT handler shuts the context down: inside spin_once that
+        # surfaces as ExternalShutdownException, between calls as rclpy.ok()
+        # turning false; both are a requested stop, not a failure.
         pass
     finally:
         node.destroy_node()

@@ -107,7 +107,10 @@ def test_characteriser_on_an_outside_publisher(tmp_path, ros_home) -> None:
             log.close()
     node_log = (tmp_path / "node.log").read_text()
     assert sorted(received) == sorted(TRIALS), node_log
-    assert (publisher_code, node_code) == (0, 0), node_log
+    publisher_log = (tmp_path / "pub.log").read_text()
+    assert (publisher_code, node_code) == (0, 0), (
+        f"publisher:\n{publisher_log}\ncharacteriser:\n{node_log}"
+    )
     for trial_id, msg in received.items():
         assert msg.task == TASK
         assert msg.aggregation == "mean+final"
