@@ -182,4 +182,4 @@ def test_a_bad_digest_is_refused_with_the_problem_named(
     assert main(["analyse", "--from-digest", str(no_curve)]) == 2
     assert "no array 'curve'" in capsys.readouterr().err
     assert main(["analyse"]) == 2
-    assert "a study directory or --from-digest" in capsys.readouterr().err
+    assert "a study directory, --from-digest DIR, or both" in capsys.readouterr().err

@@ -7,7 +7,8 @@
 - :mod:`.measure`: a short probe of what a preset costs on this machine;
 - the analysis, from the run directories alone: :mod:`.rundirs` (reading, and
   naming unusable runs), :mod:`.reduce` (the one pass over the full data, into the
-  study's :mod:`.digest`, which is all the rest reads), :mod:`.quality` (curves,
+  study's :mod:`.digest`, which is all the rest reads; :mod:`.combine` joins the
+  digests of tasks run apart), :mod:`.quality` (curves,
   bests, Mann-Whitney U),
   :mod:`.relevance` (the MI table), :mod:`.exploration` (SOM maps), :mod:`.cost`
   (rates, and the paper's study on a cluster), :mod:`.claims` (the paper's claims

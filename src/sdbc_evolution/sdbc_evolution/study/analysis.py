@@ -40,6 +40,7 @@ from sdbc_evolution.study.claims import (
     quality_claims,
     relevance_claims,
 )
+from sdbc_evolution.study.combine import combine_digests
 from sdbc_evolution.study.cost import (
     paper_preset,
     projections,
@@ -263,6 +264,40 @@ def analyse_digest_dir(
     out = Path(out_dir) if out_dir is not None else Path(digest_dir).parent
     if (out / DIGEST_DIR).resolve() != Path(digest_dir).resolve():
         write_digest(digest, out / DIGEST_DIR)
+    return analyse_digest(digest, out, settings, command)
+
+
+def analyse_parts(
+    study_dir: str | Path | None,
+    digest_dirs: list[Path],
+    out_dir: str | Path | None = None,
+    settings: AnalysisSettings | None = None,
+    command: list[str] | None = None,
+) -> Analysis:
+    """Analyses one study made of parts (:mod:`.combine`): the run directories in
+    ``study_dir`` (if given) and the digests in ``digest_dirs``, e.g. the tasks of
+    a preset run in different sessions. Writes the combined digest into
+    ``out_dir/digest`` (default: ``study_dir/report``, else the first digest's
+    parent folder), then the tables, figures and report from it.
+
+    Raises:
+        FileNotFoundError: ``study_dir`` has no usable run.
+        DigestError: A digest is unreadable, or the parts do not combine.
+    """
+    settings = settings or AnalysisSettings()
+    parts = [(str(d), read_digest(d)) for d in digest_dirs]
+    if study_dir is not None:
+        study = load_study(study_dir)
+        reduced = reduce_study(study, settings.som, str(study_dir), command)
+        parts.insert(0, (str(study_dir), reduced))
+    if out_dir is not None:
+        out = Path(out_dir)
+    elif study_dir is not None:
+        out = Path(study_dir) / "report"
+    else:
+        out = Path(digest_dirs[0]).parent
+    digest = combine_digests(parts, command or ())
+    write_digest(digest, out / DIGEST_DIR)
     return analyse_digest(digest, out, settings, command)
 
 

@@ -8,6 +8,8 @@ Examples::
     sdbc-study run --preset paper --workers 1 --shard $SLURM_ARRAY_TASK_ID/240
     sdbc-study analyse results/study-local --out docs/study/local
     sdbc-study analyse --from-digest docs/study/local/digest   # again, from its digest
+    # one study whose tasks ran apart: this session's runs with an earlier digest
+    sdbc-study analyse results/pp --from-digest docs/study/v2/digest --out docs/study/v2
     sdbc-study measure --preset local             # what the study would cost here
 
 ``run`` is resumable: run it again with the same ``--preset`` and ``--out`` and it
@@ -109,7 +111,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--from-digest",
         type=Path,
         metavar="DIR",
-        help="make everything from this digest instead of the run directories",
+        action="append",
+        help="make everything from this digest instead of the run directories; "
+        "repeated, or beside a study directory, the parts are analysed as one "
+        "study (the tasks of one preset run apart, e.g. in different sessions)",
     )
     analyse.add_argument(
         "--out",
@@ -205,19 +210,33 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
 
 
 def _analyse(
-    study: Path | None, out: Path | None, argv: list[str], digest: Path | None = None
+    study: Path | None,
+    out: Path | None,
+    argv: list[str],
+    digests: list[Path] | None = None,
 ) -> int:
-    from sdbc_evolution.study.analysis import REPORT_FILE, analyse, analyse_digest_dir
+    from sdbc_evolution.study.analysis import (
+        REPORT_FILE,
+        analyse,
+        analyse_digest_dir,
+        analyse_parts,
+    )
     from sdbc_evolution.study.digest import DigestError
 
     command = ["sdbc-study", *argv]
+    digests = digests or []
     try:
-        if study is not None and digest is None:
+        if study is None and not digests:
+            return _error(
+                "analyse takes a study directory, --from-digest DIR, or both "
+                "(parts of one study)"
+            )
+        if study is not None and not digests:
             analysis = analyse(study, out, command=command)
-        elif digest is not None and study is None:
-            analysis = analyse_digest_dir(digest, out, command=command)
+        elif study is None and len(digests) == 1:
+            analysis = analyse_digest_dir(digests[0], out, command=command)
         else:
-            return _error("analyse takes a study directory or --from-digest DIR")
+            analysis = analyse_parts(study, digests, out, command=command)
     except (FileNotFoundError, DigestError) as error:
         return _error(str(error))
     for problem in analysis.problems:
