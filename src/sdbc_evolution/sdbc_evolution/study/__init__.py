@@ -13,6 +13,6 @@
   :mod:`.relevance` (the MI table), :mod:`.exploration` (SOM maps), :mod:`.cost`
   (rates, and the paper's study on a cluster), :mod:`.claims` (the paper's claims
   and our verdicts), :mod:`.figures`, :mod:`.analysis` (tables and figures),
-  :mod:`.report` (Markdown);
+  :mod:`.report` (Markdown), :mod:`.compare` (two studies' verdicts side by side);
 - :mod:`.cli`: ``sdbc-study`` / ``python -m sdbc_evolution.study``.
 """

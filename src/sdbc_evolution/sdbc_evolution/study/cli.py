@@ -11,6 +11,7 @@ Examples::
     # one study whose tasks ran apart: this session's runs with an earlier digest
     sdbc-study analyse results/pp --from-digest docs/study/v2/digest --out docs/study/v2
     sdbc-study measure --preset local             # what the study would cost here
+    sdbc-study compare docs/study/local-v1 docs/study/local --reasons why.yaml
 
 ``run`` is resumable: run it again with the same ``--preset`` and ``--out`` and it
 skips finished runs and resumes interrupted ones. Also ``python -m
@@ -49,7 +50,7 @@ RESULTS_ROOT = Path("results")
 """Where studies go when ``--out`` is not given: ``results/study-<preset>``."""
 BUSY_EXIT = 3
 """Exit status of a session that left runs to another process's writer."""
-COMMANDS = ("run", "analyse", "all", "measure")
+COMMANDS = ("run", "analyse", "all", "measure", "compare")
 """Subcommands; ``all`` (run, then analyse) when none is given."""
 
 
@@ -120,6 +121,28 @@ def build_parser() -> argparse.ArgumentParser:
         "--out",
         type=Path,
         help="report directory (default: STUDY/report, or the digest's parent)",
+    )
+    compare = sub.add_parser(
+        "compare",
+        help="the paper's claims in two analyses: counts and changed verdicts",
+        description="Set the claims of two analysed studies side by side (their "
+        "tables/claims.csv): verdict counts, and every changed verdict with both "
+        "studies' evidence and the explanation given in --reasons.",
+    )
+    compare.add_argument("before", type=Path, help="the earlier analysis's folder")
+    compare.add_argument("after", type=Path, help="the later analysis's folder")
+    compare.add_argument(
+        "--reasons",
+        type=Path,
+        help="YAML: a claim's statement -> why its verdict changed",
+    )
+    compare.add_argument(
+        "--names",
+        default="before,after",
+        help="what the page calls the two studies (default: before,after)",
+    )
+    compare.add_argument(
+        "--out", type=Path, help="write the page here (default: print it)"
     )
     measure = sub.add_parser(
         "measure", help="time a few generations per task and project the study"
@@ -245,6 +268,34 @@ def _analyse(
     return 0
 
 
+def _compare(args: argparse.Namespace) -> int:
+    from sdbc_evolution.study.compare import (
+        CompareError,
+        comparison_page,
+        read_claims,
+        read_reasons,
+    )
+
+    names = tuple(n.strip() for n in args.names.split(","))
+    if len(names) != 2 or not all(names):
+        return _error(f"--names: two names separated by a comma, got {args.names!r}")
+    try:
+        before, after = read_claims(args.before), read_claims(args.after)
+        reasons = read_reasons(args.reasons) if args.reasons is not None else {}
+    except CompareError as error:
+        return _error(str(error))
+    page, found = comparison_page(before, after, reasons, (names[0], names[1]))
+    if args.out is not None:
+        args.out.write_text(page)
+        print(f"comparison: {args.out.resolve()}")
+    else:
+        print(page)
+    for change in found:
+        if change.why is None:
+            print(f"not explained: {change.after.statement}", file=sys.stderr)
+    return 0
+
+
 def _measure(args: argparse.Namespace) -> int:
     from sdbc_evolution.study.measure import probe, probe_report
 
@@ -277,6 +328,8 @@ def _main(args: argparse.Namespace, argv: list[str]) -> int:
         return _analyse(args.study, args.out, argv, args.from_digest)
     if args.command == "measure":
         return _measure(args)
+    if args.command == "compare":
+        return _compare(args)
     with stoppable():
         status, out = _run(args, argv)
     if args.command == "run" or status != 0 or out is None:

@@ -1,0 +1,182 @@
+"""Two analyses of the paper's claims side by side: what changed between an earlier
+study and a later one (another engine, other settings, more runs).
+
+Reads each analysis's ``tables/claims.csv`` (written by :mod:`.analysis`, the same
+bytes from a digest as from the run directories) and writes a Markdown page: the
+verdict counts of both, over all their claims and over the tasks both ran, and one
+row per claim whose verdict changed, with both studies' evidence. Why a verdict
+changed is the researcher's reading, not something the numbers say: it comes from
+a YAML file mapping a claim's statement to its explanation, and every changed
+verdict without one is reported, so that none goes unexplained by accident.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from sdbc_evolution.study.claims import Verdict
+from sdbc_evolution.study.paper import task_title
+
+CLAIMS_TABLE = Path("tables") / "claims.csv"
+COLUMNS = ("topic", "task", "claim", "paper", "ours", "p", "verdict")
+
+
+class CompareError(ValueError):
+    """Input that cannot be compared: the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class ClaimRow:
+    """One claim as an analysis judged it."""
+
+    topic: str
+    task: str
+    statement: str
+    ours: str
+    verdict: Verdict
+
+
+@dataclass(frozen=True)
+class Change:
+    """A claim whose verdict differs between the two studies."""
+
+    before: ClaimRow
+    after: ClaimRow
+    why: str | None
+
+
+def read_claims(analysis_dir: str | Path) -> list[ClaimRow]:
+    """The claims of the analysis in ``analysis_dir`` (its ``tables/claims.csv``).
+
+    Raises:
+        CompareError: The table is missing or not a claims table.
+    """
+    path = Path(analysis_dir) / CLAIMS_TABLE
+    if not path.is_file():
+        raise CompareError(f"{path}: missing (analyse the study first)")
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        if tuple(reader.fieldnames or ()) != COLUMNS:
+            raise CompareError(
+                f"{path}: columns {reader.fieldnames}, expected {list(COLUMNS)}"
+            )
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            try:
+                verdict = Verdict(row["verdict"])
+            except ValueError:
+                raise CompareError(
+                    f"{path}:{line}: unknown verdict {row['verdict']!r}"
+                ) from None
+            rows.append(
+                ClaimRow(row["topic"], row["task"], row["claim"], row["ours"], verdict)
+            )
+    statements = Counter(r.statement for r in rows)
+    twice = [s for s, n in statements.items() if n > 1]
+    if twice:
+        raise CompareError(f"{path}: claim listed twice: {twice[0]!r}")
+    return rows
+
+
+def read_reasons(path: str | Path) -> dict[str, str]:
+    """Explanations of changed verdicts: a YAML mapping from a claim's statement
+    (as the report words it) to why its verdict changed.
+
+    Raises:
+        CompareError: Not such a mapping.
+    """
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise CompareError(f"{path}: {error}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in data.items()
+    ):
+        raise CompareError(f"{path}: must map claim statements to explanations")
+    return {k: " ".join(v.split()) for k, v in data.items()}
+
+
+def changes(
+    before: Sequence[ClaimRow], after: Sequence[ClaimRow], reasons: dict[str, str]
+) -> list[Change]:
+    """The claims of ``after`` whose verdict differs in ``before``, in ``after``'s
+    order."""
+    earlier = {r.statement: r for r in before}
+    return [
+        Change(earlier[r.statement], r, reasons.get(r.statement))
+        for r in after
+        if r.statement in earlier and earlier[r.statement].verdict != r.verdict
+    ]
+
+
+def _counts(rows: Sequence[ClaimRow]) -> str:
+    counts = Counter(r.verdict for r in rows)
+    return (
+        f"{len(rows)} claims: {counts[Verdict.AGREE]} agree, "
+        f"{counts[Verdict.DISAGREE]} disagree, "
+        f"{counts[Verdict.INCONCLUSIVE]} inconclusive"
+    )
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|")
+
+
+def comparison_page(
+    before: Sequence[ClaimRow],
+    after: Sequence[ClaimRow],
+    reasons: dict[str, str],
+    names: tuple[str, str] = ("before", "after"),
+) -> tuple[str, list[Change]]:
+    """The Markdown page, and the changes it lists."""
+    both = [
+        t for t in dict.fromkeys(r.task for r in after) if t in {r.task for r in before}
+    ]
+    only_before = [t for t in dict.fromkeys(r.task for r in before) if t not in both]
+    found = changes(before, after, reasons)
+    lines = [
+        f"# The paper's claims: {names[0]} and {names[1]}",
+        "",
+        f"- {names[0]}: {_counts(before)}.",
+        f"- {names[1]}: {_counts(after)}.",
+    ]
+    if only_before:
+        shared = [r for r in before if r.task in both]
+        lines += [
+            f"- {names[0]}, on the tasks both studies ran "
+            f"({', '.join(task_title(t) for t in both)}): {_counts(shared)}.",
+            f"- Not run in {names[1]}: "
+            + ", ".join(task_title(t) for t in only_before)
+            + ".",
+        ]
+    lines += ["", f"Changed verdicts: {len(found)}.", ""]
+    if found:
+        lines += [
+            f"| claim | {names[0]} | {names[1]} | why |",
+            "|---|---|---|---|",
+        ]
+        lines += [
+            "| "
+            + " | ".join(
+                _cell(x)
+                for x in (
+                    c.after.statement,
+                    f"**{c.before.verdict.value}**: {c.before.ours}",
+                    f"**{c.after.verdict.value}**: {c.after.ours}",
+                    c.why if c.why is not None else "(not explained)",
+                )
+            )
+            + " |"
+            for c in found
+        ]
+        lines += [""]
+    return "\n".join(lines), found
