@@ -21,7 +21,11 @@ from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
 from sdbc_sim.task_state import TaskState
 from sdbc_sim.tasks import make_task
-from sdbc_sim.tasks.resource_sharing import ResourceSharing, ResourceSharingConfig
+from sdbc_sim.tasks.resource_sharing import (
+    NO_CHARGE_OPTIMUM,
+    ResourceSharing,
+    ResourceSharingConfig,
+)
 
 STOP = (0.0, 0.5, 1.0)
 GO = (1.0, 0.5, 0.0)
@@ -442,8 +446,8 @@ def test_wait_then_burn_is_the_deceptive_optimum() -> None:
     99775 / 500 / 2000 = 0.099775.
     """
     fitness = wait_then_burn(ResourceSharing(), [200, 199, 201], 4)
-    np.testing.assert_allclose(fitness[0], 99775 / 345 / 2000, rtol=1e-12)
-    assert fitness[0, 0] == pytest.approx(0.144601, abs=5e-7)
+    np.testing.assert_allclose(fitness[0], NO_CHARGE_OPTIMUM, rtol=1e-12)
+    assert pytest.approx(0.144601, abs=5e-7) == NO_CHARGE_OPTIMUM
     assert np.all(fitness[1:] < fitness[0])
     over_max_steps = make_task("resource_sharing", energy_mean_over="max_steps")
     fitness = wait_then_burn(over_max_steps, [200], 4)

@@ -133,6 +133,12 @@ from sdbc_sim.settings import (
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
+NO_CHARGE_OPTIMUM = 99775 / 345 / 2000
+"""The fitness of the best team that never charges, at the default settings: wait
+200 steps, then drive flat out until every robot dies at step 345 (the module
+docstring's arithmetic; 0.144601). Resource sharing's plateau: the study's report
+counts the runs whose best ends there."""
+
 
 @settings
 class ResourceSharingConfig:
