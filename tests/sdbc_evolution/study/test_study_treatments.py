@@ -56,6 +56,17 @@ def test_every_table_and_the_report_compare_all_eight(study: Path) -> None:
     for name in NAMES:
         assert label(name) in report, name
     assert (tables / "relevance_predator_prey.csv").is_file()  # NS-SD+'s
+    # Every weighting treatment has its relevance table, in its measure's units:
+    # mi_chance's is the MI above its chance level, at least 0.
+    chance = read_csv(tables / "relevance_predator_prey_ns-sd-pluschance.csv")
+    assert len(chance) == len(read_csv(tables / "relevance_predator_prey.csv"))
+    assert all(float(row["mean_relevance"]) >= 0 for row in chance)
+    assert "#### ns-sd+chance: relevance by `mi_chance`" in report
+    # Treatments that weigh nothing have none.
+    assert sorted(p.name for p in tables.glob("relevance_*")) == [
+        "relevance_predator_prey.csv",
+        "relevance_predator_prey_ns-sd-pluschance.csv",
+    ]
     # The paper's claims concern its four treatments only.
     for claim in read_csv(tables / "claims.csv"):
         assert not any(name in claim["claim"] for name in DECLARED)

@@ -16,6 +16,8 @@ before, with the same tables and figures to the byte. It writes::
       tables/bests_<task>.csv        treatment, run, best
       tables/mann_whitney_<task>.csv pairwise tests
       tables/relevance_<task>.csv    MI of every SDBC dimension (NS-SD+ runs)
+      tables/relevance_<task>_<treatment>.csv   the same for any other weighting
+                                     treatment (its measure's units)
       tables/exploration_<task>.csv  per run: uniformity, coverage, high-fitness share
       tables/exploration_<task>.npz  per-run shares, mean shares, percentiles, region
       tables/cost.csv                measured rates per task
@@ -33,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from sdbc_evolution.ga.treatments import treatment_directory
 from sdbc_evolution.run.results import npz_bytes
 from sdbc_evolution.study.claims import (
     Claim,
@@ -61,7 +64,12 @@ from sdbc_evolution.study.quality import (
     run_bests,
 )
 from sdbc_evolution.study.reduce import reduce_study
-from sdbc_evolution.study.relevance import relevance_table
+from sdbc_evolution.study.relevance import (
+    PAPER_WEIGHTED,
+    RelevanceTable,
+    other_relevance_tables,
+    relevance_table,
+)
 from sdbc_evolution.study.report import write_report
 from sdbc_evolution.study.rundirs import load_study
 
@@ -82,6 +90,33 @@ def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
                 ]
             )
     return path
+
+
+def _write_relevance(path: Path, table: RelevanceTable) -> Path:
+    return _write_csv(
+        path,
+        [
+            "rank",
+            "feature",
+            "mean_mi_bits" if table.treatment == PAPER_WEIGHTED else "mean_relevance",
+            "sd_mi_bits" if table.treatment == PAPER_WEIGHTED else "sd_relevance",
+            "runs",
+            "in_task_specific",
+            "chance_mi_bits",
+        ],
+        [
+            [
+                i + 1,
+                name,
+                table.mean[i],
+                table.sd[i],
+                table.runs,
+                bool(table.in_task_specific[i]),
+                table.chance[i],
+            ]
+            for i, name in enumerate(table.names)
+        ],
+    )
 
 
 def analyse_task(
@@ -148,30 +183,11 @@ def analyse_task(
 
     relevance = relevance_table(digest)
     if relevance is not None:
-        _write_csv(
-            tables / f"relevance_{task}.csv",
-            [
-                "rank",
-                "feature",
-                "mean_mi_bits",
-                "sd_mi_bits",
-                "runs",
-                "in_task_specific",
-                "chance_mi_bits",
-            ],
-            [
-                [
-                    i + 1,
-                    name,
-                    relevance.mean[i],
-                    relevance.sd[i],
-                    relevance.runs,
-                    bool(relevance.in_task_specific[i]),
-                    relevance.chance[i],
-                ]
-                for i, name in enumerate(relevance.names)
-            ],
-        )
+        _write_relevance(tables / f"relevance_{task}.csv", relevance)
+    other_relevance = other_relevance_tables(digest)
+    for treatment, table in other_relevance.items():
+        name = f"relevance_{task}_{treatment_directory(treatment)}.csv"
+        _write_relevance(tables / name, table)
 
     maps = digest.maps
     rows = []
@@ -220,6 +236,7 @@ def analyse_task(
         best_runs=best_runs,
         tests=tests,
         relevance=relevance,
+        other_relevance=other_relevance,
         maps=maps,
         cost=task_cost(digest),
         figures=figure_paths,

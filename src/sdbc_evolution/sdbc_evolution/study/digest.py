@@ -9,9 +9,10 @@ analyse --from-digest``), byte for byte. Per run:
   selection saw it, see :func:`sdbc_evolution.study.reduce.curve_column`) and per
   generation the population size, the trial steps, the wall and evaluation times
   and the workers (the cost table);
-- for NS-SD+ runs, each SDBC dimension's MI with fitness averaged over the run's
-  generations, and its chance level from evenly spaced generations
-  (:mod:`.relevance`);
+- for runs that weigh the SDBC (NS-SD+ and any declared weighting treatment), each
+  SDBC dimension's relevance (weight - delta: for NS-SD+ its MI with fitness)
+  averaged over the run's generations, and the MI's chance level from evenly
+  spaced generations (:mod:`.relevance`);
 - its individuals per unit of the task's SOM (:mod:`.exploration`).
 
 Per task: the SDBC dimension names, bodies per trial and the longest trial, and the
@@ -75,9 +76,10 @@ class RunDigest:
         wall_time: (G,) seconds each generation took.
         evaluation_time: (G,) seconds of it spent in the evaluator.
         workers: (G,) workers that evaluated each generation.
-        information: (D,) mean MI of each SDBC dimension with fitness, bits (NS-SD+
-            runs only, else None).
-        chance: (D,) its chance level, bits (NS-SD+ runs only, else None).
+        information: (D,) mean weight - delta of each SDBC dimension (NS-SD+: its
+            MI with fitness, bits); weighting runs only, else None.
+        chance: (D,) the MI's chance level, bits (weighting runs only, else
+            None).
     """
 
     name: str
@@ -218,7 +220,7 @@ def task_arrays(digest: TaskDigest) -> dict[str, np.ndarray]:
         for names, counts in zip(maps.run_names, maps.counts, strict=True)
         for i, name in enumerate(names)
     }
-    plus = [i for i, r in enumerate(runs) if r.information is not None]
+    weighted = [i for i, r in enumerate(runs) if r.information is not None]
     width = len(digest.sdbc_names)
     arrays: dict[str, np.ndarray] = {
         "sdbc_names": _strings(digest.sdbc_names),
@@ -236,13 +238,13 @@ def task_arrays(digest: TaskDigest) -> dict[str, np.ndarray]:
             np.float64
         ),
         "workers": np.concatenate([r.workers for r in runs]).astype(np.int64),
-        "mi_runs": np.array(plus, dtype=np.int64),
-        "mi": np.array([runs[i].information for i in plus], dtype=np.float64).reshape(
-            len(plus), width
-        ),
-        "mi_chance": np.array([runs[i].chance for i in plus], dtype=np.float64).reshape(
-            len(plus), width
-        ),
+        "mi_runs": np.array(weighted, dtype=np.int64),
+        "mi": np.array(
+            [runs[i].information for i in weighted], dtype=np.float64
+        ).reshape(len(weighted), width),
+        "mi_chance": np.array(
+            [runs[i].chance for i in weighted], dtype=np.float64
+        ).reshape(len(weighted), width),
         "som_treatments": _strings(maps.treatments),
         "som_counts": np.stack([by_name[r.name] for r in runs]).astype(np.int64),
         "som_percentile": maps.percentile.astype(np.float64),
@@ -282,7 +284,8 @@ def write_digest(digest: StudyDigest, directory: str | Path) -> list[Path]:
                         curve_sources, generations (G_r); per generation,
                         concatenated over the runs: curve, population,
                         trial_steps, wall_time, evaluation_time, workers; per
-                        NS-SD+ run: mi_runs (run index), mi and mi_chance (D,);
+                        weighting run: mi_runs (run index), mi (weight - delta)
+                        and mi_chance (D,);
                         som_counts (R, U); per treatment som_treatments,
                         som_percentile (K, U); som_pooled_percentile (U,),
                         som_sample_count, som_quantisation_error

@@ -58,6 +58,8 @@ class TaskAnalysis:
     maps: ExplorationMaps
     cost: TaskCost
     figures: dict[str, Path]
+    other_relevance: dict[str, RelevanceTable] = field(default_factory=dict)
+    """Relevance tables of the weighting treatments other than NS-SD+."""
 
 
 @dataclass

@@ -1,7 +1,8 @@
 """From a study's run directories to its digest (:mod:`.digest`).
 
 The one pass over the full data: each run's curve and per-generation numbers, the
-NS-SD+ runs' mutual information and its chance level, and the SOM maps (trained on
+weighting runs' relevance (NS-SD+: mutual information) and the MI's chance level,
+and the SOM maps (trained on
 a sample, then every individual mapped). Everything after this works on the digest.
 """
 
@@ -22,7 +23,11 @@ from sdbc_evolution.study.digest import (
 from sdbc_evolution.study.exploration import SomSettings, exploration_maps
 from sdbc_evolution.study.plan import LOG_FILE, STUDY_FILE
 from sdbc_evolution.study.presets import PresetError, load_preset_file
-from sdbc_evolution.study.relevance import run_chance_information, run_information
+from sdbc_evolution.study.relevance import (
+    run_chance_information,
+    run_information,
+    weight_measure,
+)
 from sdbc_evolution.study.rundirs import RunData, StudyData
 
 REEVALUATED = "reevaluated_fitness"
@@ -67,9 +72,10 @@ def with_study_dir(command: list[str], study_dir: str) -> list[str]:
 
 
 def reduce_run(run: RunData) -> RunDigest:
-    """One run's digest; the mutual information only for NS-SD+ runs."""
+    """One run's digest; the relevance of each dimension (and the MI's chance
+    level) only for runs that weigh the SDBC."""
     column = curve_column(run)
-    plus = run.treatment == "ns-sd+"
+    weighted = weight_measure(run.config) is not None
     return RunDigest(
         name=run.name,
         config=run.config,
@@ -80,8 +86,8 @@ def reduce_run(run: RunData) -> RunDigest:
         wall_time=run.columns["wall_time"],
         evaluation_time=run.columns["evaluation_time"],
         workers=workers_per_generation(run),
-        information=run_information(run) if plus else None,
-        chance=run_chance_information(run) if plus else None,
+        information=run_information(run) if weighted else None,
+        chance=run_chance_information(run) if weighted else None,
     )
 
 

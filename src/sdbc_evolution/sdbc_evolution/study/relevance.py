@@ -1,4 +1,5 @@
-"""Relevance of behaviour features: the paper's mutual information table.
+"""Relevance of behaviour features: the paper's mutual information table, and the
+same table for every other treatment that weighs the SDBC.
 
 NS-SD+ weighs SDBC dimension k by w_k = delta + I(F; k) every generation, and the run
 directory records the weights in force (``weight:<name>`` columns of
@@ -8,7 +9,11 @@ directory records the weights in force (``weight:<name>`` columns of
 
 in bits. The relevance of feature k in a run is its mean over the run's generations;
 the table gives the mean and SD of that over the runs, sorted by the mean, and marks
-the features that the task-specific characterisation also has.
+the features that the task-specific characterisation also has. A declared
+treatment that weighs by another relevance measure (``transforms: [standardise,
+{weight: {relevance: NAME}}]``) records its weights the same way, so its table is
+w - delta in that measure's units (for ``mi_chance``, the MI minus its chance
+level, in bits).
 
 Beside it, the **chance level** of each feature: the same estimate on the same
 populations with each generation's fitness shuffled, I_g(F'; k), averaged over
@@ -33,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sdbc_evolution.relevance.measures import chance_information
+from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.run.results import WEIGHT_PREFIX
 from sdbc_evolution.study.digest import TaskDigest
 from sdbc_evolution.study.rundirs import RunData
@@ -56,18 +62,35 @@ def task_specific_dimensions(task: str) -> frozenset[str]:
     )
 
 
+PAPER_WEIGHTED = "ns-sd+"
+"""The paper's weighted treatment: its table is the one the paper's claims read."""
+BITS = ("mi", "mi_chance")
+"""Relevance measures in bits, to which the MI's chance level applies."""
+
+
+def weight_measure(config: ExperimentConfig) -> str | None:
+    """The relevance measure a run's weights come from; None if it weighs nothing."""
+    from sdbc_evolution.transforms.pipeline import WeightOptions
+
+    for transform in config.treatment.transforms:
+        if isinstance(transform.options, WeightOptions):
+            return transform.options.measure.name
+    return None
+
+
 def run_information(run: RunData) -> np.ndarray:
-    """(D,) mean over the run's generations of I(F; k) = w_k - delta, in bits.
+    """(D,) mean over the run's generations of w_k - delta: I(F; k) in bits for
+    NS-SD+, the relevance by the run's own measure for any weighting treatment.
 
     Raises:
-        ValueError: The run has no weights (not NS-SD+).
+        ValueError: The run has no weights (it weighs nothing).
     """
     weights = np.column_stack(
         [run.columns[WEIGHT_PREFIX + name] for name in run.sdbc_names]
     )
     recorded = np.isfinite(weights).all(axis=1)
     if not recorded.any():
-        raise ValueError(f"{run.name}: no NS-SD+ weights in {WEIGHT_PREFIX}* columns")
+        raise ValueError(f"{run.name}: no weights in {WEIGHT_PREFIX}* columns")
     return weights[recorded].mean(axis=0) - run.config.weighting.delta
 
 
@@ -102,16 +125,21 @@ def run_chance_information(
 
 @dataclass(frozen=True)
 class RelevanceTable:
-    """Mutual information of every SDBC dimension with fitness on one task.
+    """Relevance of every SDBC dimension to fitness on one task, from one
+    weighting treatment's runs (NS-SD+: mutual information, the paper's table).
 
     Attributes:
         task: Task name.
         names: (D,) dimension names, most relevant first.
-        mean: (D,) mean over runs of each run's mean I(F; k), bits.
+        mean: (D,) mean over runs of each run's mean w - delta (for NS-SD+, the
+            mean I(F; k), bits).
         sd: (D,) standard deviation over runs (ddof 1; NaN with one run).
-        runs: NS-SD+ runs it comes from.
+        runs: Runs it comes from.
         in_task_specific: (D,) whether the task-specific characterisation has it.
-        chance: (D,) mean over runs of the chance level (module docstring), bits.
+        chance: (D,) mean over runs of the MI's chance level (module docstring),
+            bits.
+        treatment: The treatment whose runs it comes from.
+        measure: Its relevance measure (``mi`` for NS-SD+).
     """
 
     task: str
@@ -121,6 +149,8 @@ class RelevanceTable:
     runs: int
     in_task_specific: np.ndarray
     chance: np.ndarray
+    treatment: str = PAPER_WEIGHTED
+    measure: str = "mi"
 
     def top(self, n: int) -> RelevanceTable:
         """The ``n`` most relevant dimensions."""
@@ -132,6 +162,8 @@ class RelevanceTable:
             self.runs,
             self.in_task_specific[:n],
             self.chance[:n],
+            self.treatment,
+            self.measure,
         )
 
     def rank_of(self, name: str) -> int | None:
@@ -139,18 +171,21 @@ class RelevanceTable:
         return self.names.index(name) + 1 if name in self.names else None
 
 
-def relevance_table(task: TaskDigest) -> RelevanceTable | None:
-    """The table from the task's NS-SD+ runs (None without any)."""
+def relevance_table(
+    task: TaskDigest, treatment: str = PAPER_WEIGHTED
+) -> RelevanceTable | None:
+    """The table from the task's runs of ``treatment`` (None without any run
+    that recorded weights)."""
     measured = [
-        (r.information, r.chance)
-        for r in task.of("ns-sd+")
+        (r.information, r.chance, r.config)
+        for r in task.of(treatment)
         if r.information is not None and r.chance is not None
     ]
     if not measured:
         return None
     names = task.sdbc_names
-    information = np.stack([i for i, _ in measured])  # (R, D)
-    chance = np.stack([c for _, c in measured]).mean(axis=0)
+    information = np.stack([i for i, _, _ in measured])  # (R, D)
+    chance = np.stack([c for _, c, _ in measured]).mean(axis=0)
     mean = information.mean(axis=0)
     sd = (
         information.std(axis=0, ddof=1)
@@ -168,4 +203,19 @@ def relevance_table(task: TaskDigest) -> RelevanceTable | None:
         runs=len(measured),
         in_task_specific=np.array([n in matched for n in ordered]),
         chance=chance[order],
+        treatment=treatment,
+        measure=weight_measure(measured[0][2]) or "mi",
     )
+
+
+def other_relevance_tables(task: TaskDigest) -> dict[str, RelevanceTable]:
+    """The tables of every weighting treatment but NS-SD+, in the task's
+    treatment order."""
+    tables = {}
+    for treatment in task.treatments():
+        if treatment == PAPER_WEIGHTED:
+            continue
+        table = relevance_table(task, treatment)
+        if table is not None:
+            tables[treatment] = table
+    return tables

@@ -30,7 +30,7 @@ from sdbc_evolution.study.findings import Analysis, TaskAnalysis
 from sdbc_evolution.study.paper import is_paper_task, paper_generations, task_title
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS
-from sdbc_evolution.study.relevance import task_specific_features
+from sdbc_evolution.study.relevance import BITS, task_specific_features
 from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
 if TYPE_CHECKING:
@@ -232,6 +232,7 @@ def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         ],
     )
     lines += _relevance_section(ta, analysis)
+    lines += _other_relevance_sections(ta, analysis)
     lines += _exploration_section(ta, analysis)
     return lines
 
@@ -302,6 +303,47 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         )
     if notes:
         lines += ["The paper's other listed features: " + "; ".join(notes) + ".", ""]
+    return lines
+
+
+def _other_relevance_sections(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
+    """One table per weighting treatment other than NS-SD+, in its measure's
+    units."""
+    n = analysis.settings.top_features
+    lines = []
+    for treatment, table in ta.other_relevance.items():
+        bits = table.measure in BITS
+        lines += [
+            f"#### {label(treatment)}: relevance by `{table.measure}`",
+            "",
+            f"Weight - delta of the {label(treatment)} runs ({table.runs}), "
+            "averaged over each run's generations; mean and SD over runs"
+            + (", bits" if bits else "")
+            + f". The {n} most relevant of {len(table.names)} dimensions."
+            + (
+                " Chance: the MI's chance level on the same populations (as in "
+                "the NS-SD+ table)"
+                + (
+                    ", which this measure subtracts from the MI at every "
+                    "generation (keeping at least 0)"
+                    if table.measure == "mi_chance"
+                    else ""
+                )
+                + "."
+                if bits
+                else ""
+            ),
+            "",
+        ]
+        top = table.top(n)
+        rows = [
+            [str(i + 1), name, f"{top.mean[i]:.2f}", _f(top.sd[i], 2)]
+            + ([f"{top.chance[i]:.2f}"] if bits else [])
+            + ["yes" if top.in_task_specific[i] else ""]
+            for i, name in enumerate(top.names)
+        ]
+        header = ["#", "feature", "mean", "SD"] + (["chance"] if bits else [])
+        lines += _table(header + ["in TS char."], rows)
     return lines
 
 
