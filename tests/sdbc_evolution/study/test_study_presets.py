@@ -108,3 +108,15 @@ def test_unknown_preset_name_and_unreadable_file(tmp_path: Path) -> None:
 def test_defaults_are_the_paper_study() -> None:
     preset = StudyPreset(name="x")
     assert preset.runs == 20 and preset.sizes()["population"] == 200
+
+
+def test_the_population_200_preset_tests_ns_sd_plus_on_predator_prey() -> None:
+    preset = load_preset("pp_pop200")
+    assert preset.tasks == ("predator_prey",) or list(preset.tasks) == ["predator_prey"]
+    assert [t.name for t in preset.treatments] == ["ns-sd", "ns-sd+", "ns-sd+chance"]
+    for treatment in preset.treatments:
+        config = preset.experiment_config("predator_prey", treatment, 0)
+        assert config.ga.population_size == 200
+    assert preset.runs == 10
+    chance = preset.treatments[2].transforms[-1].options.measure.name
+    assert chance == "mi_chance"
