@@ -33,7 +33,7 @@ from sdbc_evolution.study.runner import Execution, run_study
 from study_helpers import tiny_preset
 
 REPOSITORY = Path(__file__).resolve().parents[3]
-COMMITTED = REPOSITORY / "docs" / "study" / "local"
+COMMITTED = REPOSITORY / "docs" / "study" / "local-v1"
 SMALL_SOM = AnalysisSettings(
     som=SomSettings(rows=4, columns=4, sample_size=40, iterations=300)
 )
