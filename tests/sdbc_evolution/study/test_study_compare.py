@@ -98,3 +98,28 @@ def test_bad_input_is_named(studies, tmp_path, capsys) -> None:
         read_reasons(listed)
     assert main(["compare", str(studies[0]), str(studies[1]), "--names", "x"]) == 2
     assert "--names: two names" in capsys.readouterr().err
+
+
+STUDIES = Path(__file__).resolve().parents[3] / "docs" / "study"
+
+
+def test_the_committed_comparison_is_current_and_explains_every_change(
+    tmp_path: Path, capsys
+) -> None:
+    """docs/study/local/comparison.md is what the command makes from the two
+    committed studies, and every changed verdict has its reason."""
+    out = tmp_path / "comparison.md"
+    argv = [
+        "compare",
+        str(STUDIES / "local-v1"),
+        str(STUDIES / "local"),
+        "--names",
+        "the first local study,the second local study",
+        "--reasons",
+        str(STUDIES / "local" / "comparison-reasons.yaml"),
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 0
+    assert "not explained" not in capsys.readouterr().err
+    assert out.read_text() == (STUDIES / "local" / "comparison.md").read_text()

@@ -33,7 +33,10 @@ from sdbc_evolution.study.runner import Execution, run_study
 from study_helpers import tiny_preset
 
 REPOSITORY = Path(__file__).resolve().parents[3]
-COMMITTED = REPOSITORY / "docs" / "study" / "local-v1"
+STUDIES = REPOSITORY / "docs" / "study"
+COMMITTED = ("local", "local-v1")
+"""The committed studies: the second local study (the engine's defaults since
+2026-12-01) and the first."""
 SMALL_SOM = AnalysisSettings(
     som=SomSettings(rows=4, columns=4, sample_size=40, iterations=300)
 )
@@ -62,23 +65,25 @@ def tiny_report(tiny_study: Path) -> Path:
     return out
 
 
+@pytest.mark.parametrize("study", COMMITTED)
 def test_committed_digest_rebuilds_the_committed_tables_and_figures(
-    tmp_path: Path,
+    study: str, tmp_path: Path
 ) -> None:
-    digest = COMMITTED / DIGEST_DIR
+    committed = STUDIES / study
+    digest = committed / DIGEST_DIR
     assert main(["analyse", "--from-digest", str(digest), "--out", str(tmp_path)]) == 0
     for folder in (TABLES_DIR, FIGURES_DIR):
-        committed = tree_bytes(COMMITTED / folder)
+        kept = tree_bytes(committed / folder)
         rebuilt = tree_bytes(tmp_path / folder)
-        assert sorted(rebuilt) == sorted(committed), folder
-        for name, data in committed.items():
+        assert sorted(rebuilt) == sorted(kept), folder
+        for name, data in kept.items():
             assert rebuilt[name] == data, f"{folder}/{name}"
     # The rebuilt folder holds the digest too, the same bytes.
     assert tree_bytes(tmp_path / DIGEST_DIR) == tree_bytes(digest)
     # The report too: made from the digest, it is the report the run directories
     # gave (its commands are those that made the runs and the digest).
     assert (tmp_path / REPORT_FILE).read_bytes() == (
-        COMMITTED / REPORT_FILE
+        committed / REPORT_FILE
     ).read_bytes()
 
 
