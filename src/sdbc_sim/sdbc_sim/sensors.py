@@ -20,21 +20,31 @@ import numpy as np
 TWO_PI = 2.0 * np.pi
 
 
+def _slices(a: np.ndarray, axis: int) -> list[np.ndarray]:
+    """The views a[..., k, ...] along ``axis``, in index order. Plain indexing
+    rather than ``np.moveaxis``, whose argument checks cost more than the sums
+    themselves on the engine's short axes (tens of thousands of calls a batch)."""
+    if a.shape[axis] == 0:
+        raise IndexError(f"nothing to reduce: axis {axis} of shape {a.shape} is empty")
+    lead: tuple[slice | int, ...] = (slice(None),) * (axis % a.ndim)
+    return [a[(*lead, k)] for k in range(a.shape[axis])]
+
+
 def robot_sum(a: np.ndarray, axis: int = 1) -> np.ndarray:
     """Sum over a short axis, always in index order: ((a_0 + a_1) + a_2) + ..."""
-    a = np.moveaxis(a, axis, 0)
-    total = a[0].copy()
-    for k in range(1, a.shape[0]):
-        total += a[k]
+    first, *rest = _slices(a, axis)
+    total = first.copy()
+    for part in rest:
+        total += part
     return total
 
 
 def robot_min(a: np.ndarray, axis: int = -1) -> np.ndarray:
     """Minimum over a short axis, as a chain of element-wise minima."""
-    a = np.moveaxis(a, axis, 0)
-    low = a[0].copy()
-    for k in range(1, a.shape[0]):
-        np.minimum(low, a[k], out=low)
+    first, *rest = _slices(a, axis)
+    low = first.copy()
+    for part in rest:
+        np.minimum(low, part, out=low)
     return low
 
 
