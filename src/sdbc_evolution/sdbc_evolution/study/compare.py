@@ -22,6 +22,7 @@ import yaml
 
 from sdbc_evolution.study.claims import Verdict
 from sdbc_evolution.study.paper import task_title
+from sdbc_evolution.study.report import markdown_table
 
 CLAIMS_TABLE = Path("tables") / "claims.csv"
 COLUMNS = ("topic", "task", "claim", "paper", "ours", "p", "verdict")
@@ -138,9 +139,8 @@ def comparison_page(
     names: tuple[str, str] = ("before", "after"),
 ) -> tuple[str, list[Change]]:
     """The Markdown page, and the changes it lists."""
-    both = [
-        t for t in dict.fromkeys(r.task for r in after) if t in {r.task for r in before}
-    ]
+    ran_before = {r.task for r in before}
+    both = [t for t in dict.fromkeys(r.task for r in after) if t in ran_before]
     only_before = [t for t in dict.fromkeys(r.task for r in before) if t not in both]
     found = changes(before, after, reasons)
     lines = [
@@ -160,23 +160,19 @@ def comparison_page(
         ]
     lines += ["", f"Changed verdicts: {len(found)}.", ""]
     if found:
-        lines += [
-            f"| claim | {names[0]} | {names[1]} | why |",
-            "|---|---|---|---|",
-        ]
-        lines += [
-            "| "
-            + " | ".join(
-                _cell(x)
-                for x in (
-                    c.after.statement,
-                    f"**{c.before.verdict.value}**: {c.before.ours}",
-                    f"**{c.after.verdict.value}**: {c.after.ours}",
-                    c.why if c.why is not None else "(not explained)",
-                )
-            )
-            + " |"
-            for c in found
-        ]
-        lines += [""]
+        lines += markdown_table(
+            ["claim", names[0], names[1], "why"],
+            [
+                [
+                    _cell(x)
+                    for x in (
+                        c.after.statement,
+                        f"**{c.before.verdict.value}**: {c.before.ours}",
+                        f"**{c.after.verdict.value}**: {c.after.ours}",
+                        c.why if c.why is not None else "(not explained)",
+                    )
+                ]
+                for c in found
+            ],
+        )
     return "\n".join(lines), found

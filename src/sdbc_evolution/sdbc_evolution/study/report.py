@@ -43,12 +43,12 @@ CLAIM_TOPICS = {
 }
 """The report's claim tables, in the paper's order."""
 PAPER = ExperimentConfig()
+"""The paper's settings (docs/reference-setup.md), for the side-by-side sizes."""
 PLATEAU_MARGIN = 0.005
 """A run's last best counts as on resource sharing's plateau within this distance of
 the no-charge optimum, and as above it beyond. In the first local study the bests
 on the plateau, re-evaluated in fresh trials, lay 0.0005 to 0.0015 below it, those
 that charged 0.007 or more above, and the rest 0.007 or more below."""
-"""The paper's settings (docs/reference-setup.md), for the side-by-side sizes."""
 
 
 def _f(x: float, digits: int = 3) -> str:
@@ -65,7 +65,8 @@ def _minutes(seconds: float) -> str:
     return f"{seconds / 60:.1f} min"
 
 
-def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table and the blank line after it."""
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     return lines + [""]
@@ -123,7 +124,7 @@ def _sizes(analysis: Analysis) -> list[str]:
             *(f"{h} (paper)" for h in header[2:]),
             "trials per run, share of the paper's",
         ]
-    return _table(header, rows)
+    return markdown_table(header, rows)
 
 
 def session_wall_seconds(sessions: list[dict]) -> float:
@@ -179,7 +180,7 @@ def _wall_times(analysis: Analysis) -> list[str]:
                     "",
                 ]
             )
-    return _table(["task", "wall time", "sessions", "how"], rows)
+    return markdown_table(["task", "wall time", "sessions", "how"], rows)
 
 
 def _claims_table(claims: list[Claim]) -> list[str]:
@@ -194,7 +195,7 @@ def _claims_table(claims: list[Claim]) -> list[str]:
         ]
         for i, c in enumerate(claims)
     ]
-    return _table(["#", "claim", "paper", "ours", "our p", "verdict"], rows)
+    return markdown_table(["#", "claim", "paper", "ours", "our p", "verdict"], rows)
 
 
 def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
@@ -214,7 +215,7 @@ def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         "chance that a run of the first treatment beats one of the second.",
         "",
     ]
-    lines += _table(
+    lines += markdown_table(
         ["a", "b", "median a", "median b", "mean a", "mean b", "U", "A", "p"],
         [
             [
@@ -289,7 +290,7 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
             + ([f"{p.mean:.2f} ({p.sd:.2f})" if p else ""] if with_paper else [])
         )
     header = ["#", "feature", "mean MI", "SD MI", "chance", "in TS char."]
-    lines += _table(header + (["paper mean (SD)"] if with_paper else []), rows)
+    lines += markdown_table(header + (["paper mean (SD)"] if with_paper else []), rows)
     missing = [f for f in PAPER_RELEVANCE.get(ta.task, ()) if f.name not in top.names]
     notes = []
     for f in missing:
@@ -343,7 +344,7 @@ def _other_relevance_sections(ta: TaskAnalysis, analysis: Analysis) -> list[str]
             for i, name in enumerate(top.names)
         ]
         header = ["#", "feature", "mean", "SD"] + (["chance"] if bits else [])
-        lines += _table(header + ["in TS char."], rows)
+        lines += markdown_table(header + ["in TS char."], rows)
     return lines
 
 
@@ -377,7 +378,7 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
                 f"{h.mean():.3f} +- {_sd(h):.3f}",
             ]
         )
-    lines += _table(
+    lines += markdown_table(
         [
             "treatment",
             "runs",
@@ -474,11 +475,8 @@ def _plateau(analysis: Analysis) -> list[str]:
     study = analysis.digest
     if "resource_sharing" not in study.tasks():
         return []
-    runs = study.task("resource_sharing").runs
-    finals = {
-        t: [r.curve[-1] for r in runs if r.treatment == t]
-        for t in study.task("resource_sharing").treatments()
-    }
+    task = study.task("resource_sharing")
+    finals = {t: [r.curve[-1] for r in task.of(t)] for t in task.treatments()}
     on = {
         t: sum(abs(v - NO_CHARGE_OPTIMUM) <= PLATEAU_MARGIN for v in f)
         for t, f in finals.items()
@@ -518,7 +516,7 @@ def _projection(analysis: Analysis) -> list[str]:
         "long side.",
         "",
     ]
-    lines += _table(
+    lines += markdown_table(
         [
             "task",
             "runs",
@@ -590,7 +588,7 @@ def _projection(analysis: Analysis) -> list[str]:
             for w in workers
         ]
     )
-    lines += _table(
+    lines += markdown_table(
         ["task", "CPU hours", "hours per run"]
         + [f"hours on W = {w} (bound)" for w in workers],
         rows,
