@@ -17,6 +17,7 @@ from sdbc_evolution.study.analysis import (
 from sdbc_evolution.study.cli import main
 from sdbc_evolution.study.combine import combine_digests
 from sdbc_evolution.study.digest import DIGEST_DIR, DigestError, read_digest
+from sdbc_evolution.study.exploration import SomSettings
 from sdbc_evolution.study.findings import AnalysisSettings
 from sdbc_evolution.study.presets import preset_from_dict
 from sdbc_evolution.study.runner import Execution, run_study
@@ -113,7 +114,7 @@ def test_parts_that_do_not_combine_are_refused_by_name(
     with pytest.raises(DigestError, match="task gate_escape is in both one and two"):
         combine_digests([("one", digest), ("two", digest)])
     other = AnalysisSettings(
-        som=SMALL_SOM.som.__class__(rows=3, columns=3, sample_size=40, iterations=300)
+        som=SomSettings(rows=3, columns=3, sample_size=40, iterations=300)
     )
     analyse(parts["aggregation"], tmp_path / "b", other)
     with pytest.raises(DigestError, match="different SOM settings"):
