@@ -39,6 +39,7 @@ ROS_PACKAGES = {
 """Imported ROS packages: their rosdep key is their name."""
 ROSDEP_KEYS = {
     "matplotlib": "python3-matplotlib",
+    "numba": "python3-numba",
     "numpy": "python3-numpy",
     "pydantic": "python3-pydantic",
     "scipy": "python3-scipy",

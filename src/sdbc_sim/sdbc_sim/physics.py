@@ -30,10 +30,10 @@ a wall or another body during a step ends that step overlapping it by up to its
 speed times dt, which chipmunk would only push out during the next step. Here
 chipmunk's own push-out is switched off (``collision_bias`` 1); after every step
 the contacts it found are read in bulk (``get_space_arbiters``), and in every trial
-where one overlaps by more than ``overlap_tolerance`` the bodies are projected
-apart in numpy (:func:`project_apart`), leaving half the tolerance so that chipmunk
-keeps the contact and its solver stops any further approach. The state the engine
-reports then has no overlap beyond the tolerance.
+where one overlaps by more than ``overlap_tolerance`` the bodies are projected apart
+(:func:`~sdbc_sim.separation.project_apart`), leaving half the tolerance so that
+chipmunk keeps the contact and its solver stops any further approach. The state the
+engine reports then has no overlap beyond the tolerance.
 
 A finished trial's bodies are removed from its Space when the engine compacts;
 chipmunk then reorders its body list, so the mapping from a Space's body order to
@@ -53,7 +53,7 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
-from sdbc_sim.sensors import norm, robot_sum, segment_offsets
+from sdbc_sim.separation import project_apart
 from sdbc_sim.task import Task
 
 _READ = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
@@ -137,7 +137,7 @@ class PhysicsSettings:
             power of two at least the largest body diameter.
         hash_cells_per_trial: Hash table cells per trial of a Space.
         separation_iterations: Most projection passes per step in a trial with
-            an overlap (see :func:`project_apart`).
+            an overlap (see :func:`~sdbc_sim.separation.project_apart`).
         actuation: How a body gets its commanded velocity v*. ``velocity`` (the
             default) writes v* as the body's velocity before the step; chipmunk
             integrates positions first, so the body turns and moves in the step it
@@ -255,90 +255,6 @@ class SlotGrid:
             + np.array([col, row], dtype=np.float64) * self.spacing
             + self.origin
         )
-
-
-def project_apart(
-    pos: np.ndarray,
-    enabled: np.ndarray,
-    radii: np.ndarray,
-    walls: np.ndarray,
-    tolerance: float,
-    iterations: int,
-    anchored: np.ndarray | None = None,
-) -> np.ndarray:
-    """Moves overlapping bodies apart until no overlap exceeds ``tolerance``.
-
-    Jacobi passes: in each, two bodies i, j overlapping by o = r_i + r_j - d_ij >
-    tolerance move apart along their centre line by (o - tolerance / 2) / 2 each
-    (by all of it the one that is not anchored, if the other is), and a body
-    overlapping a wall by o = r_i - dist > tolerance moves out along the wall's
-    normal by o - tolerance / 2; the moves of a pass are summed in index
-    order (so a trial's result never depends on its batch-mates) and applied
-    together. Passes stop when nothing overlaps or after ``iterations``.
-
-    Args:
-        pos: (S, R, 2) centres of the bodies of S trials.
-        enabled: (S, R) bool; switched-off bodies neither move nor push.
-        radii: (R,) radii.
-        walls: (P, 2, 2) wall segments.
-        tolerance: Largest overlap left in place; half of it stays after a move.
-        iterations: Most passes.
-        anchored: (S, R) bool, anchored bodies, or None for none.
-
-    Returns:
-        (S, R, 2) new centres.
-    """
-    pos = pos.copy()
-    target = 0.5 * tolerance
-    n = radii.shape[0]
-    reach = radii[:, None] + radii[None, :]
-    pair = ~np.eye(n, dtype=bool) & enabled[:, :, None] & enabled[:, None, :]
-    # Share of a pair's overlap that body i takes: 1/2, or 0 (i anchored, j not),
-    # or 1 (j anchored, i not).
-    share: np.ndarray | float = 0.5
-    if anchored is not None:
-        a = anchored.astype(np.float64)
-        share = 0.5 + 0.5 * (a[:, None, :] - a[:, :, None])
-    # Each pass works on the trials that moved in the pass before: a trial whose
-    # pass finds no overlap would only be moved by +-0 from then on, so dropping
-    # it changes none of its bits, and the last passes cost only the few trials
-    # still moving.
-    rows = np.arange(pos.shape[0])
-    p = pos
-    for _ in range(iterations):
-        x, y = p[..., 0], p[..., 1]
-        dx = x[:, None, :] - x[:, :, None]
-        dy = y[:, None, :] - y[:, :, None]
-        d = norm(dx, dy)
-        over = reach - d
-        hit = pair & (over > tolerance) & (d > 0.0)
-        k = np.where(hit, (over - target) * share / np.where(d > 0.0, d, 1.0), 0.0)
-        shift_x = -robot_sum(k * dx, axis=2)
-        shift_y = -robot_sum(k * dy, axis=2)
-        moving = hit.any(axis=(1, 2))
-        if walls.shape[0]:
-            off = segment_offsets(p, walls)
-            dist = norm(off[..., 0], off[..., 1])
-            over_w = radii[None, :, None] - dist
-            hit_w = enabled[:, :, None] & (over_w > tolerance) & (dist > 0.0)
-            k_w = np.where(
-                hit_w, (over_w - target) / np.where(dist > 0.0, dist, 1.0), 0.0
-            )
-            shift_x += robot_sum(k_w * off[..., 0], axis=2)
-            shift_y += robot_sum(k_w * off[..., 1], axis=2)
-            moving |= hit_w.any(axis=(1, 2))
-        if not moving.any():
-            break
-        keep = np.flatnonzero(moving)
-        p = p[keep]
-        p[..., 0] += shift_x[keep]
-        p[..., 1] += shift_y[keep]
-        rows = rows[keep]
-        pos[rows] = p
-        pair, enabled = pair[keep], enabled[keep]
-        if isinstance(share, np.ndarray):
-            share = share[keep]
-    return pos
 
 
 _FREE_BUFFERS: dict[str, list[pb.Buffer]] = {"read": [], "write": []}
@@ -630,7 +546,7 @@ class TrialSpaces:
         """Projects apart the bodies of every trial where chipmunk found a contact
         overlapping by more than the tolerance, in ``out`` (as filled by
         :meth:`read`); the next :meth:`step` writes them into pymunk. See
-        :func:`project_apart`.
+        :func:`~sdbc_sim.separation.project_apart`.
 
         Args:
             out: (rows, 5) live body state, trial-local.
