@@ -64,6 +64,58 @@ def test_rays_and_segments() -> None:
     np.testing.assert_allclose(p, [[3.0, 2.0], [3.0, math.hypot(5.0, 3.0)]])
 
 
+def array_ray_segment_distance(
+    origins: np.ndarray, directions: np.ndarray, length: float, segments: np.ndarray
+) -> np.ndarray:
+    """Ray distances as whole-array numpy per segment: the formulation the
+    sensors used before the compiled loop, kept as its oracle."""
+    ox_all, oy_all = origins[:, 0], origins[:, 1]
+    nearest = np.full(origins.shape[0], np.inf)
+    for (ax, ay), (bx, by) in segments.tolist():
+        near = np.flatnonzero(
+            (ox_all >= min(ax, bx) - length)
+            & (ox_all <= max(ax, bx) + length)
+            & (oy_all >= min(ay, by) - length)
+            & (oy_all <= max(ay, by) + length)
+        )
+        if near.size == 0:
+            continue
+        ox, oy = ox_all[near], oy_all[near]
+        ux, uy = directions[near, 0], directions[near, 1]
+        ex, ey = bx - ax, by - ay
+        wx, wy = ax - ox, ay - oy
+        denom = ux * ey - uy * ex
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (wx * ey - wy * ex) / denom
+            s = (wx * uy - wy * ux) / denom
+        best = nearest[near]
+        hit = (t >= 0.0) & (t <= length) & (s >= 0.0) & (s <= 1.0) & (t < best)
+        nearest[near[hit]] = t[hit]
+    return nearest
+
+
+def test_the_compiled_ray_loop_is_the_array_formulation_to_the_bit() -> None:
+    """Random rays among random segments, with parallel rays, rays along a
+    segment, points as segments and rays starting on a segment."""
+    rng = np.random.default_rng(3)
+    segments = rng.uniform(0.0, 20.0, (9, 2, 2))
+    segments[1, 1] = segments[1, 0]  # a point
+    segments[2, :, 1] = 7.0  # horizontal
+    segments[3, :, 0] = 4.0  # vertical
+    origins = rng.uniform(-3.0, 23.0, (3000, 2))
+    angle = rng.uniform(-math.pi, math.pi, 3000)
+    angle[::7] = 0.0  # parallel to the horizontal segment
+    angle[1::7] = math.pi / 2  # parallel to the vertical one
+    directions = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    origins[2::7, 1] = 7.0  # on the horizontal segment's line
+    origins[3::7] = segments[0, 0]  # on an end point
+    for length in (2.5, 10.0):
+        want = array_ray_segment_distance(origins, directions, length, segments)
+        got = ray_segment_distance(origins, directions, length, segments)
+        assert np.all(got.view(np.int64) == want.view(np.int64))
+        assert 0 < np.count_nonzero(np.isfinite(got)) < got.shape[0]
+
+
 def test_readings_and_fixed_order_reductions() -> None:
     np.testing.assert_allclose(
         normalised_reading(np.array([0.0, 12.5, 25.0, 40.0]), 25.0), [-1, 0, 1, 1]
