@@ -27,6 +27,9 @@ calls (so every part is exclusive and the parts add up):
   extractor's ``start``;
 - other: the rest of ``run_batch`` (the step loop, the checks in ``step``).
 
+One trial runs first, untimed, so that what a process pays once (first calls,
+the compiled loops loaded from numba's cache) is not charged to a part.
+
 Every part is printed with its CPU seconds, its share, its cost per step and per
 robot-step, and the robot-steps per CPU-second the whole batch reached; the timer's
 own cost (a few microseconds per call, about 15 calls per step) falls in the parts
@@ -187,6 +190,10 @@ def profile_task(
     extractor = SdbcExtractor(check_values=False) if sdbc else None
     clock = Clock()
     observers = [extractor] if extractor is not None else []
+    # One trial first, untimed: what a process pays once (first calls, compiled
+    # loops loaded) is not a cost of the step.
+    warm_up = [SdbcExtractor(check_values=False)] if sdbc else []
+    run_batch(task, g[:1], s[:1, :1], warm_up, settings=settings)
     with instrumented(clock, task, extractor):
         t0 = time.process_time()
         result = run_batch(task, g, s, observers, settings=settings)
