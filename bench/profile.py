@@ -27,8 +27,8 @@ calls (so every part is exclusive and the parts add up):
   extractor's ``start``;
 - other: the rest of ``run_batch`` (the step loop, the checks in ``step``).
 
-One trial runs first, untimed, so that what a process pays once (first calls,
-the compiled loops loaded from numba's cache) is not charged to a part.
+The first 5 genomes run first, untimed, so that what a process pays once (first
+calls, numba imported and the compiled loops loaded) is not charged to a part.
 
 Every part is printed with its CPU seconds, its share, its cost per step and per
 robot-step, and the robot-steps per CPU-second the whole batch reached; the timer's
@@ -190,10 +190,11 @@ def profile_task(
     extractor = SdbcExtractor(check_values=False) if sdbc else None
     clock = Clock()
     observers = [extractor] if extractor is not None else []
-    # One trial first, untimed: what a process pays once (first calls, compiled
-    # loops loaded) is not a cost of the step.
+    # A few genomes first, untimed: what a process pays once (first calls, numba
+    # imported and the compiled loops loaded when a trial first needs them) is
+    # not a cost of the step.
     warm_up = [SdbcExtractor(check_values=False)] if sdbc else []
-    run_batch(task, g[:1], s[:1, :1], warm_up, settings=settings)
+    run_batch(task, g[:5], s[:5], warm_up, settings=settings)
     with instrumented(clock, task, extractor):
         t0 = time.process_time()
         result = run_batch(task, g, s, observers, settings=settings)

@@ -15,8 +15,9 @@ range r reads ``2 d / r - 1`` in [-1, 1], and 1 when nothing is in range.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from sdbc_sim.compiled import compiled
 
 TWO_PI = 2.0 * np.pi
 
@@ -163,7 +164,7 @@ def ray_segment_distance(
     Parallel rays and segments never hit. A ray only looks at the segments whose
     bounding box, grown by ``length``, holds its start.
 
-    A compiled loop (numba, no fast-math): the wall rays of every robot near a
+    A compiled loop (:mod:`sdbc_sim.compiled`): the wall rays of every robot near a
     wall, at every step, made a dozen whole-array operations per segment; the
     loop does the same IEEE operations in the same order (the results are the
     array formulation's to the bit, ``tests/sdbc_sim/test_sensors.py``).
@@ -185,7 +186,7 @@ def ray_segment_distance(
     )
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled
 def _ray_segment_distance(
     origins: np.ndarray, directions: np.ndarray, length: float, segments: np.ndarray
 ) -> np.ndarray:  # pragma: no cover - compiled; tested through ray_segment_distance

@@ -8,16 +8,17 @@ trials where chipmunk found a deep contact.
 It runs at almost every step (robots that press on a wall overlap it again each
 step), on a few bodies of a few trials at a time: whole-array numpy paid a call's
 overhead for every one of its ~40 operations per pass, which made the projection
-the largest part of a gate-escape step. So it is a compiled loop (numba, no
-fast-math: every operation is the IEEE one numpy would do, in the same order,
-so the results are those of the array formulation to the bit, which
-``tests/sdbc_sim/test_separation.py`` checks against it).
+the largest part of a gate-escape step. So it is a compiled loop
+(:mod:`sdbc_sim.compiled`): every operation is the IEEE one numpy would do, in the
+same order, so the results are those of the array formulation to the bit, which
+``tests/sdbc_sim/test_separation.py`` checks against it.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from sdbc_sim.compiled import compiled
 
 
 def project_apart(
@@ -65,7 +66,7 @@ def project_apart(
     )
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled
 def _project_apart(
     pos: np.ndarray,
     enabled: np.ndarray,
