@@ -1,13 +1,16 @@
-"""Loops compiled by numba, on first use.
+"""Loops compiled by numba, loaded when the physics is first set up.
 
 The engine compiles a few small loops whose whole-array numpy form paid a call's
 overhead on many tiny arrays at every step (the overlap projection, the wall
 rays). Importing numba costs about 0.5 s of CPU and loading compiled code from
-its cache 0.7 s more, so the compilation waits for the first call: a process
-that never steps the physics (a controller node, a command-line tool) never
-pays it.
+its cache 0.7 s more, so nothing is loaded at import: :func:`load` loads every
+loop when the first batch of trials is set up (``TrialSpaces``), and a loop
+called before that loads itself. A process that never steps the physics (a
+controller node, a command-line tool) never pays it, and one that does pays it
+at a known point rather than at whichever step first needs a loop.
 
-Every loop is compiled without fast-math: its additions, multiplications,
+Every loop has one signature (its callers pass contiguous float64 and bool
+arrays) and is compiled without fast-math: its additions, multiplications,
 divisions, square roots and comparisons are the IEEE operations numpy does, and
 each loop does them in the order of the array formulation it replaces, so its
 results are the same to the bit (each module's tests keep that formulation as
@@ -19,23 +22,49 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-def compiled(fn: F) -> F:
-    """``fn`` compiled by numba (nopython, cached on disk, numpy's error model)
-    the first time it is called."""
-    kernel: Callable[..., Any] | None = None
+class _Loop:
+    """A Python function and the numba kernel compiled from it once loaded."""
 
-    @functools.wraps(fn)
-    def call(*args: Any) -> Any:
-        nonlocal kernel
-        if kernel is None:
+    def __init__(self, fn: Callable[..., Any], signature: str) -> None:
+        functools.update_wrapper(self, fn)
+        self.fn = fn
+        self.signature = signature
+        self.kernel: Callable[..., Any] | None = None
+
+    def load(self) -> Callable[..., Any]:
+        if self.kernel is None:
             import numba
 
-            kernel = numba.njit(cache=True, error_model="numpy")(fn)
-        return kernel(*args)
+            self.kernel = numba.njit(self.signature, cache=True, error_model="numpy")(
+                self.fn
+            )
+        return self.kernel
 
-    return call  # type: ignore[return-value]
+    def __call__(self, *args: Any) -> Any:
+        return (self.kernel or self.load())(*args)
+
+
+_LOOPS: list[_Loop] = []
+
+
+def compiled(signature: str) -> Callable[[F], F]:
+    """Marks ``fn`` as a loop compiled by numba with ``signature`` (nopython,
+    cached on disk, numpy's error model), loaded by :func:`load`."""
+
+    def mark(fn: F) -> F:
+        loop = _Loop(fn, signature)
+        _LOOPS.append(loop)
+        return cast(F, loop)
+
+    return mark
+
+
+def load() -> None:
+    """Loads (compiling if numba's cache lacks them) every loop marked so far."""
+    for loop in _LOOPS:
+        loop.load()

@@ -53,6 +53,7 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
+from sdbc_sim import compiled
 from sdbc_sim.separation import project_apart
 from sdbc_sim.task import Task
 
@@ -388,6 +389,8 @@ class TrialSpaces:
         settings: PhysicsSettings,
     ) -> None:
         self.settings = settings
+        # The compiled loops load here, not at the step that first needs one.
+        compiled.load()
         n_trials, n_bodies = angle.shape
         self.n_bodies = n_bodies
         fields = pb.BodyFields.ANGLE | _MOTION[settings.actuation]

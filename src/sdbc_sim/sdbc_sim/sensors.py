@@ -186,7 +186,7 @@ def ray_segment_distance(
     )
 
 
-@compiled
+@compiled("float64[::1](float64[:, ::1], float64[:, ::1], float64, float64[:, :, ::1])")
 def _ray_segment_distance(
     origins: np.ndarray, directions: np.ndarray, length: float, segments: np.ndarray
 ) -> np.ndarray:  # pragma: no cover - compiled; tested through ray_segment_distance

@@ -66,7 +66,10 @@ def project_apart(
     )
 
 
-@compiled
+@compiled(
+    "float64[:, :, ::1](float64[:, :, ::1], boolean[:, ::1], float64[::1],"
+    " float64[:, :, ::1], float64, int64, boolean[:, ::1])"
+)
 def _project_apart(
     pos: np.ndarray,
     enabled: np.ndarray,
