@@ -191,8 +191,8 @@ def profile_task(
     clock = Clock()
     observers = [extractor] if extractor is not None else []
     # A few genomes first, untimed: what a process pays once (first calls, numba
-    # imported and the compiled loops loaded when a trial first needs them) is
-    # not a cost of the step.
+    # imported and the compiled loops loaded at the first setup) is not a cost
+    # of the step.
     warm_up = [SdbcExtractor(check_values=False)] if sdbc else []
     run_batch(task, g[:5], s[:5], warm_up, settings=settings)
     with instrumented(clock, task, extractor):

@@ -47,8 +47,8 @@ settings = EngineSettings(physics=PhysicsSettings(**a["physics"]))
 def observers():
     return [SdbcExtractor(check_values=False)] if a["sdbc"] else []
 # A few genomes first: what a process pays once (first calls, numba imported
-# and the compiled loops loaded when a trial first needs them) stays out of the
-# batch's time.
+# and the compiled loops loaded at the first setup) stays out of the batch's
+# time.
 run_batch(task, g[:5], s[:5], observers(), settings=settings)
 t0 = time.process_time()
 r = run_batch(task, g, s, observers(), settings=settings)

@@ -1,0 +1,41 @@
+"""When the compiled loops are loaded: never on import, always at a batch's setup.
+
+Each check runs in a fresh interpreter: in the test process, other tests will
+have loaded the loops already.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+
+def fresh(code: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    )
+    return done.stdout.strip()
+
+
+def test_importing_the_simulator_and_its_tasks_does_not_import_numba() -> None:
+    """A controller node or a command-line tool never pays for numba."""
+    code = (
+        "import sys, sdbc_sim, sdbc_sim.tasks, sdbc_sim.nodes.controller_node\n"
+        "print('numba' in sys.modules)"
+    )
+    assert fresh(code) == "False"
+
+
+def test_setting_up_a_batch_loads_every_loop() -> None:
+    """Even a trial that never needs a loop (a still team, no walls) loads them."""
+    code = (
+        "import numpy as np\n"
+        "from sdbc_sim import compiled\n"
+        "from sdbc_sim.engine import run_batch\n"
+        "from sdbc_sim.tasks import make_task\n"
+        "task = make_task('resource_sharing', max_steps=2)\n"
+        "run_batch(task, np.zeros((1, task.genome_length)), np.zeros((1, 1), int))\n"
+        "loops = compiled._LOOPS\n"
+        "print(len(loops), sum(loop.kernel is not None for loop in loops))"
+    )
+    assert fresh(code) == "2 2"
