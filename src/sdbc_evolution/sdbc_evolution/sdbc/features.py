@@ -193,7 +193,7 @@ def _slot_sum(
     total = out if out is not None else np.empty((*shape[:first], *rest), a.dtype)
     # Plain indexing (a view) rather than np.take (a copy through a Python
     # wrapper): a group of many entities makes hundreds of these per step.
-    lead = (slice(None),) * first
+    lead: tuple[slice | int, ...] = (slice(None),) * first
     np.copyto(total, rows[(*lead, 0)], casting="unsafe")
     for k in range(1, rows.shape[first]):
         total += rows[(*lead, k)]
