@@ -22,7 +22,7 @@ from sdbc_sim.compiled import compiled
 TWO_PI = 2.0 * np.pi
 
 
-def _slices(a: np.ndarray, axis: int) -> list[np.ndarray]:
+def axis_views(a: np.ndarray, axis: int) -> list[np.ndarray]:
     """The views a[..., k, ...] along ``axis``, in index order. Plain indexing
     rather than ``np.moveaxis``, whose argument checks cost more than the sums
     themselves on the engine's short axes (tens of thousands of calls a batch)."""
@@ -34,7 +34,7 @@ def _slices(a: np.ndarray, axis: int) -> list[np.ndarray]:
 
 def robot_sum(a: np.ndarray, axis: int = 1) -> np.ndarray:
     """Sum over a short axis, always in index order: ((a_0 + a_1) + a_2) + ..."""
-    first, *rest = _slices(a, axis)
+    first, *rest = axis_views(a, axis)
     total = first.copy()
     for part in rest:
         total += part
@@ -43,7 +43,7 @@ def robot_sum(a: np.ndarray, axis: int = 1) -> np.ndarray:
 
 def robot_min(a: np.ndarray, axis: int = -1) -> np.ndarray:
     """Minimum over a short axis, as a chain of element-wise minima."""
-    first, *rest = _slices(a, axis)
+    first, *rest = axis_views(a, axis)
     low = first.copy()
     for part in rest:
         np.minimum(low, part, out=low)

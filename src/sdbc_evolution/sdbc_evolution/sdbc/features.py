@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
+from sdbc_sim.sensors import axis_views
 from sdbc_sim.task_state import (
     EntityGroupSpec,
     GroupState,
@@ -191,12 +192,12 @@ def _slot_sum(
     rest = shape[first + len(axes) :]
     rows = a.reshape(*shape[:first], -1, *rest)
     total = out if out is not None else np.empty((*shape[:first], *rest), a.dtype)
-    # Plain indexing (a view) rather than np.take (a copy through a Python
-    # wrapper): a group of many entities makes hundreds of these per step.
-    lead: tuple[slice | int, ...] = (slice(None),) * first
-    np.copyto(total, rows[(*lead, 0)], casting="unsafe")
-    for k in range(1, rows.shape[first]):
-        total += rows[(*lead, k)]
+    # Views rather than np.take (a copy through a Python wrapper): a group of
+    # many entities makes hundreds of these per step.
+    head, *tail = axis_views(rows, first)
+    np.copyto(total, head, casting="unsafe")
+    for part in tail:
+        total += part
     return total
 
 
