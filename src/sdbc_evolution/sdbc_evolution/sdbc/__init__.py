@@ -2,7 +2,8 @@
 
 From a task description alone (:mod:`sdbc_sim.task_state`), the SDBC turns the task
 state of every step into behaviour features (:mod:`.features`, eqs. 2 to 5, with
-the distance function f_D of :mod:`.distance`), aggregates them into a raw
+the distance function f_D of :mod:`.distance`; :mod:`.fused` computes the same
+totals in compiled loops), aggregates them into a raw
 characterisation per trial (:mod:`.aggregation`: means, finals, length), and, per
 generation, standardises them (:mod:`.standardise`) and weights them by mutual
 information with fitness (:mod:`.weighting`, NS-SD+).

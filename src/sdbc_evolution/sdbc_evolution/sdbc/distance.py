@@ -289,7 +289,7 @@ def entity_distance(
         sb = Segments(*(v[None] for v in b.arrays()))
         d = np.sqrt(segment_segment_distance2(sa, sb).min(axis=(0, 1)))
     else:
-        discs, poly = _disc_and_polygon(a, b)
+        discs, poly = disc_and_polygon(a, b)
         # The polygon's segment axis leads: the least over it is a row-wise minimum.
         d2 = point_segment_distance2(discs.x[None], discs.y[None], poly, ws, key)
         d = np.minimum.reduce(d2, axis=0, out=ws.get((key, "d"), d2.shape[1:]))
@@ -299,7 +299,7 @@ def entity_distance(
     return np.maximum(d, 0.0, out=d)
 
 
-def _disc_and_polygon(a: Shapes, b: Shapes) -> tuple[Discs, Segments]:
+def disc_and_polygon(a: Shapes, b: Shapes) -> tuple[Discs, Segments]:
     """``a`` and ``b``, one of discs and one of segments, in that order."""
     if isinstance(a, Discs) and isinstance(b, Segments):
         return a, b

@@ -19,13 +19,15 @@ step yields, group by group in the description's order:
 A feature is NaN at a step where it is undefined: the means and distances of an empty
 group, the dispersion of a group with fewer than two entities.
 
-:class:`StepFeatures` computes them all for a batch of trials in a few numpy
-operations per feature: pair indices are built once, and no Python loop runs over
+:class:`StepFeatures` computes them all for a batch of trials, one compiled loop
+per feature (:mod:`.fused`) where the shapes are discs, or a few numpy operations
+per feature otherwise: pair indices are built once, and no Python loop runs over
 trials or entities.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 
@@ -39,10 +41,13 @@ from sdbc_sim.task_state import (
     validate_task_state,
 )
 
+from sdbc_evolution.sdbc import fused as loops
 from sdbc_evolution.sdbc.distance import (
     Discs,
+    Segments,
     Shapes,
     Workspace,
+    disc_and_polygon,
     entity_distance,
     expand,
     group_shapes,
@@ -201,6 +206,45 @@ def _slot_sum(
     return total
 
 
+def _fused_distance_total(
+    a: Shapes,
+    a_absent: np.ndarray,
+    b: Shapes,
+    b_absent: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    out: np.ndarray,
+) -> bool:
+    """``out[b] = sum_p f_D(a[first[p]], b[second[p]])``, a pair with an absent
+    entity adding 0, by the loops of :mod:`.fused`; False, with nothing done, for
+    two groups of polygons, which the loops leave to numpy."""
+    if isinstance(a, Discs) and isinstance(b, Discs):
+        loops.disc_pair_total(
+            *(a.x, a.y, _radii(a), a_absent),
+            *(b.x, b.y, _radii(b), b_absent),
+            *(first, second, out),
+        )
+    elif isinstance(a, Segments) and isinstance(b, Segments):
+        return False
+    else:
+        discs, polygons = disc_and_polygon(a, b)
+        disc_slots, polygon_slots = (first, second) if discs is a else (second, first)
+        disc_absent, polygon_absent = (
+            (a_absent, b_absent) if discs is a else (b_absent, a_absent)
+        )
+        loops.disc_segment_total(
+            *(discs.x, discs.y, _radii(discs), disc_absent),
+            *(polygons.ax, polygons.ay, polygons.abx, polygons.aby),
+            *(polygons.inverse, polygon_absent, disc_slots, polygon_slots, out),
+        )
+    return True
+
+
+def _radii(discs: Discs) -> np.ndarray:
+    """The discs' radii, zeros for points."""
+    return loops.no_radius(discs.x.shape[0]) if discs.r is None else discs.r
+
+
 def _zero_where(array: np.ndarray, mask: np.ndarray) -> None:
     """Sets ``array`` to 0 where the broadcast ``mask`` holds, in place.
 
@@ -230,6 +274,10 @@ class StepFeatures:
             step only and reuse it: static entities never move, so within one
             batch their shapes are fixed (their presence is still read every step).
             For a new batch, use a new instance.
+        fused: Compute the mean states and every distance that involves a disc
+            with the compiled loops of :mod:`.fused`; False computes everything
+            with numpy arrays (:mod:`.distance`). Both give the same totals to the
+            bit; the loops are faster at the batch sizes evolution runs.
 
     ``compute(state, trials)`` computes the features of some trials only (the
     active ones, once many trials have ended): a few gathers instead of
@@ -237,17 +285,34 @@ class StepFeatures:
     """
 
     def __init__(
-        self, description: TaskDescription, fixed_static_geometry: bool = False
+        self,
+        description: TaskDescription,
+        fixed_static_geometry: bool = False,
+        *,
+        fused: bool = True,
     ) -> None:
         self.description = description
         self.features = behaviour_features(description)
         self.fixed_static_geometry = fixed_static_geometry
+        self.fused = fused
         self._pairs = {
-            g: np.triu_indices(group.max_size, k=1)
+            g: tuple(
+                np.ascontiguousarray(k, dtype=np.int64)
+                for k in np.triu_indices(group.max_size, k=1)
+            )
             for g, group in enumerate(description.groups)
             if has_dispersion(group)
         }
+        self._slot_pairs = {
+            (f.group, f.second_group): loops.pair_slots(
+                description.groups[f.group].max_size,
+                description.groups[f.second_group].max_size,
+            )
+            for f in self.features
+            if f.kind is FeatureKind.GROUP_DISTANCE
+        }
         self._full = tuple(g.min_size == g.max_size for g in description.groups)
+        self._none_absent = [loops.none_absent(g.max_size) for g in description.groups]
         self._workspace = Workspace()
         self._static_shapes: dict[int, Shapes] = {}
         self._constant_counts = {
@@ -398,6 +463,10 @@ class StepFeatures:
             else:
                 total[f] = _slot_sum(d, axes)
 
+        def mask(g: int) -> np.ndarray:
+            return self._none_absent[g] if full[g] else absence(g)
+
+        fused = self.fused
         constant = self._constant_counts
         for f, feature in enumerate(self.features):
             g = feature.group
@@ -409,54 +478,86 @@ class StepFeatures:
                 # Eq. 3: one sum over slots gives every attribute's numerator, into
                 # the group's consecutive attribute rows.
                 if feature.attribute == 0:
-                    source = state.groups[g].attributes.transpose(2, 1, 0)
-                    values = ws.get(("attributes", g), source.shape)
-                    np.copyto(values, source)
-                    if not full[g]:
-                        # Absent slots may hold anything, NaN included: zero them.
-                        _zero_where(values, absence(g)[None])
                     rows = total[f : f + len(spec.attributes)]
-                    if values.shape[2:] == rows.shape[1:]:
-                        _slot_sum(values, (1,), rows)
+                    if fused:
+                        attributes = state.groups[g].attributes
+                        loops.mean_state_totals(attributes, mask(g), rows)
                     else:
-                        rows[...] = _slot_sum(values, (1,))
+                        self._mean_state_totals(state, g, absence, rows)
                 if f not in constant:
                     count[f] = size(g)
             elif feature.kind is FeatureKind.DISPERSION:
                 # Eq. 4 as the mean over unordered pairs i < j of present entities.
                 i, j = self._pairs[g]
-                d = entity_distance(
-                    pick(shape(g), i, ws, ("i", f)),
-                    pick(shape(g), j, ws, ("j", f)),
-                    ws,
-                    f,
-                )
+                shapes_g = shape(g)
+                if not (
+                    fused
+                    and _fused_distance_total(
+                        shapes_g, mask(g), shapes_g, mask(g), i, j, total[f]
+                    )
+                ):
+                    d = entity_distance(
+                        pick(shapes_g, i, ws, ("i", f)),
+                        pick(shapes_g, j, ws, ("j", f)),
+                        ws,
+                        f,
+                    )
+                    if not full[g]:
+                        a = absence(g)
+                        shape_ij = (len(i),) + a.shape[1:]
+                        invalid = ws.get(("invalid", f), shape_ij, np.bool_)
+                        np.logical_or(a[i], a[j], out=invalid)
+                        _zero_where(d, invalid)
+                    reduce_into(f, d, (0,))
                 if not full[g]:
-                    a = absence(g)
-                    invalid = ws.get(("invalid", f), (len(i),) + a.shape[1:], np.bool_)
-                    np.logical_or(a[i], a[j], out=invalid)
-                    _zero_where(d, invalid)
                     n = size(g)
                     count[f] = n * (n - 1.0) / 2.0
-                reduce_into(f, d, (0,))
             else:
                 # Eq. 5: the mean over all pairs of present entities of g and h.
                 h = feature.second_group
-                d = entity_distance(expand(shape(g), 1), expand(shape(h), 0), ws, f)
+                first, second = self._slot_pairs[g, h]
+                a_shapes, b_shapes = shape(g), shape(h)
+                if not (
+                    fused
+                    and _fused_distance_total(
+                        a_shapes, mask(g), b_shapes, mask(h), first, second, total[f]
+                    )
+                ):
+                    d = entity_distance(expand(a_shapes, 1), expand(b_shapes, 0), ws, f)
+                    if not (full[g] and full[h]):
+                        if full[g]:
+                            invalid = absence(h)[None]
+                        elif full[h]:
+                            invalid = absence(g)[:, None]
+                        else:
+                            invalid = ws.get(("invalid", f), d.shape, np.bool_)
+                            np.logical_or(
+                                absence(g)[:, None], absence(h)[None], out=invalid
+                            )
+                        _zero_where(d, invalid)
+                    reduce_into(f, d, (0, 1))
                 if not (full[g] and full[h]):
-                    if full[g]:
-                        invalid = absence(h)[None]
-                    elif full[h]:
-                        invalid = absence(g)[:, None]
-                    else:
-                        invalid = ws.get(("invalid", f), d.shape, np.bool_)
-                        np.logical_or(
-                            absence(g)[:, None], absence(h)[None], out=invalid
-                        )
-                    _zero_where(d, invalid)
                     count[f] = size(g) * size(h)
-                reduce_into(f, d, (0, 1))
         return total, count
+
+    def _mean_state_totals(
+        self,
+        state: TaskState,
+        g: int,
+        absence: Callable[[int], np.ndarray],
+        rows: np.ndarray,
+    ) -> None:
+        """The numerators of eq. 3 with numpy arrays (``fused=False``)."""
+        source = state.groups[g].attributes.transpose(2, 1, 0)
+        values = self._workspace.get(("attributes", g), source.shape)
+        np.copyto(values, source)
+        if not self._full[g]:
+            # Absent slots may hold anything, NaN included: zero them.
+            _zero_where(values, absence(g)[None])
+        if values.shape[2:] == rows.shape[1:]:
+            _slot_sum(values, (1,), rows)
+        else:
+            rows[...] = _slot_sum(values, (1,))
 
     def _check_full(self, state: TaskState, g: int) -> None:
         present = state.groups[g].present

@@ -1,0 +1,204 @@
+"""Eqs. 3 to 5 fused with f_D (eq. 1) into compiled loops, one call per feature.
+
+:class:`~sdbc_evolution.sdbc.features.StepFeatures` computes a feature as a chain
+of whole-array numpy operations (:mod:`.distance`, then a masked sum over slots).
+At the batch sizes evolution runs (a generation is a few hundred trials), each of
+those operations costs more in numpy's per-call overhead than in arithmetic, and a
+step of predator-prey makes about 350 of them. The loops here do the same IEEE
+operations in the same order for the common shapes, so their totals are the same
+to the bit:
+
+- :func:`mean_state_totals`: every attribute's sum over a group's present
+  entities (the numerators of eq. 3);
+- :func:`disc_pair_total`: the sum of f_D over a list of disc pairs (circles or
+  points), the numerator of eq. 4 (pairs i < j of one group) or of eq. 5 (every
+  pair of two groups);
+- :func:`disc_segment_total`: the same for pairs of a disc and a polygon.
+
+A pair or an entity that is absent adds 0, the sums run in slot order starting
+from the first term, as ``features._slot_sum`` adds them, and the floor at 0 keeps
+a NaN, as ``np.maximum`` does. Distances between two polygons stay in numpy
+(:func:`.distance.segment_segment_distance2`): no task has two moving polygons.
+``StepFeatures(fused=False)`` computes every feature the numpy way, which the tests
+use as the oracle.
+
+Arrays are slot-major with the batch last, as :mod:`.distance` lays them out; a
+batch axis of 1 is shared by every trial.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sdbc_sim.compiled import compiled
+
+
+def no_radius(slots: int) -> np.ndarray:
+    """The (S, 1) radii of points: subtracting +0 leaves every float as it is."""
+    return np.zeros((slots, 1))
+
+
+def none_absent(slots: int) -> np.ndarray:
+    """The (S, 1) absence mask of a group whose slots are always full."""
+    return np.zeros((slots, 1), dtype=np.bool_)
+
+
+def pair_slots(first: int, second: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair of a slot of one group (``first`` slots) with a slot of another,
+    in the row-major order of eq. 5's sum: ``(0, 0), (0, 1), ..., (1, 0), ...``."""
+    return (
+        np.repeat(np.arange(first, dtype=np.int64), second),
+        np.tile(np.arange(second, dtype=np.int64), first),
+    )
+
+
+@compiled("void(float64[:, :, :], boolean[:, :], float64[:, :])")
+def mean_state_totals(
+    attributes: np.ndarray, absent: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled; tested through StepFeatures
+    """``out[a, b] = sum_s attributes[b, s, a]`` over the slots ``s`` present in
+    trial ``b``.
+
+    Args:
+        attributes: (B|1, S, A), a group's state attributes as the task state
+            holds them.
+        absent: (S, B|1), True where a slot holds no entity.
+        out: (A, B), the attributes' rows of the feature totals.
+    """
+    shared = attributes.shape[0] == 1
+    shared_mask = absent.shape[1] == 1
+    for a in range(out.shape[0]):
+        for b in range(out.shape[1]):
+            row = 0 if shared else b
+            col = 0 if shared_mask else b
+            total = 0.0
+            for s in range(attributes.shape[1]):
+                value = 0.0 if absent[s, col] else attributes[row, s, a]
+                total = value if s == 0 else total + value
+            out[a, b] = total
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :], float64[:, :], boolean[:, :], "
+    "float64[:, :], float64[:, :], float64[:, :], boolean[:, :], "
+    "int64[::1], int64[::1], float64[:])"
+)
+def disc_pair_total(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    ar: np.ndarray,
+    a_absent: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    br: np.ndarray,
+    b_absent: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through StepFeatures
+    """``out[b] = sum_p f_D(a[first[p]], b[second[p]])`` in trial ``b``, a pair
+    with an absent entity adding 0.
+
+    Args:
+        ax, ay, ar: (S, B|1) centres and radii of the first group's discs
+            (:func:`no_radius` for points).
+        a_absent: (S, B|1) absence of the first group (:func:`none_absent` if
+            full).
+        bx, by, br, b_absent: The same for the second group (the first again for
+            a dispersion).
+        first, second: The pairs' slots, in the order of the sum.
+        out: (B,) the feature's row of the totals.
+    """
+    for b in range(out.shape[0]):
+        total = 0.0
+        for p in range(first.shape[0]):
+            i = first[p]
+            j = second[p]
+            if (
+                a_absent[i, min(b, a_absent.shape[1] - 1)]
+                or b_absent[j, min(b, b_absent.shape[1] - 1)]
+            ):
+                d = 0.0
+            else:
+                dx = ax[i, min(b, ax.shape[1] - 1)] - bx[j, min(b, bx.shape[1] - 1)]
+                dy = ay[i, min(b, ay.shape[1] - 1)] - by[j, min(b, by.shape[1] - 1)]
+                d = np.sqrt(dx * dx + dy * dy)
+                d = d - ar[i, min(b, ar.shape[1] - 1)]
+                d = d - br[j, min(b, br.shape[1] - 1)]
+                if d < 0.0:
+                    d = 0.0
+            total = d if p == 0 else total + d
+        out[b] = total
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :], float64[:, :], boolean[:, :], "
+    "float64[:, :, :], float64[:, :, :], float64[:, :, :], float64[:, :, :], "
+    "float64[:, :, :], boolean[:, :], int64[::1], int64[::1], float64[:])"
+)
+def disc_segment_total(
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cr: np.ndarray,
+    c_absent: np.ndarray,
+    sax: np.ndarray,
+    say: np.ndarray,
+    sabx: np.ndarray,
+    saby: np.ndarray,
+    inverse: np.ndarray,
+    s_absent: np.ndarray,
+    disc: np.ndarray,
+    polygon: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through StepFeatures
+    """``out[b] = sum_p f_D(disc[p], polygon[p])`` in trial ``b``: the least
+    distance from the disc's centre to the polygon's segments, less its radius,
+    floored at 0; a pair with an absent entity adds 0.
+
+    Args:
+        cx, cy, cr, c_absent: (S, B|1) the discs, as in :func:`disc_pair_total`.
+        sax, say, sabx, saby, inverse: (P, S, B|1) the polygons' segments: first
+            end point, end-to-end vector and ``1 / |b - a|^2`` (0 if degenerate),
+            as :class:`.distance.Segments` holds them.
+        s_absent: (S, B|1) absence of the polygons' group.
+        disc, polygon: The pairs' slots, in the order of the sum.
+        out: (B,) the feature's row of the totals.
+    """
+    n_segments = sax.shape[0]
+    for b in range(out.shape[0]):
+        total = 0.0
+        for p in range(disc.shape[0]):
+            i = disc[p]
+            k = polygon[p]
+            if (
+                c_absent[i, min(b, c_absent.shape[1] - 1)]
+                or s_absent[k, min(b, s_absent.shape[1] - 1)]
+            ):
+                d = 0.0
+            else:
+                px = cx[i, min(b, cx.shape[1] - 1)]
+                py = cy[i, min(b, cy.shape[1] - 1)]
+                col = min(b, sax.shape[2] - 1)
+                least = 0.0
+                for q in range(n_segments):
+                    dx = px - sax[q, k, col]
+                    dy = py - say[q, k, col]
+                    abx = sabx[q, k, col]
+                    aby = saby[q, k, col]
+                    t = (dx * abx + dy * aby) * inverse[q, k, col]
+                    # np.clip: NaN stays NaN.
+                    if t < 0.0:
+                        t = 0.0
+                    elif t > 1.0:
+                        t = 1.0
+                    dx = dx - t * abx
+                    dy = dy - t * aby
+                    d2 = dx * dx + dy * dy
+                    # np.minimum: a NaN, once met, stays.
+                    if q == 0 or (not np.isnan(least) and not least <= d2):
+                        least = d2
+                d = np.sqrt(least)
+                d = d - cr[i, min(b, cr.shape[1] - 1)]
+                if d < 0.0:
+                    d = 0.0
+            total = d if p == 0 else total + d
+        out[b] = total

@@ -1,0 +1,114 @@
+"""The compiled feature loops (sdbc/fused.py) against the numpy formulation, to the
+bit: ``StepFeatures(fused=False)`` is the oracle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sdbc_evolution.sdbc.features import StepFeatures
+from sdbc_sim.task_state import GroupState, TaskDescription, TaskState
+from sdbc_sim.tasks import available_tasks, make_task
+from sdbc_states import (
+    GATE_ESCAPE,
+    PREDATOR_PREY,
+    RESOURCE_SHARING,
+    SMALL,
+    random_state,
+    small_state,
+)
+
+DESCRIPTIONS = [GATE_ESCAPE, RESOURCE_SHARING, PREDATOR_PREY, SMALL] + [
+    make_task(name).description for name in sorted(available_tasks())
+]
+
+
+def assert_same_bits(
+    fused: tuple[np.ndarray, np.ndarray], oracle: tuple[np.ndarray, np.ndarray]
+) -> None:
+    for got, want in zip(fused, oracle, strict=True):
+        assert got.shape == want.shape
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def both(
+    description: TaskDescription,
+    state: TaskState,
+    trials: np.ndarray | None = None,
+    fixed_static_geometry: bool = False,
+) -> None:
+    fused = StepFeatures(description, fixed_static_geometry)
+    oracle = StepFeatures(description, fixed_static_geometry, fused=False)
+    assert_same_bits(
+        tuple(a.copy() for a in fused.compute(state, trials)),
+        tuple(a.copy() for a in oracle.compute(state, trials)),
+    )
+
+
+@pytest.mark.parametrize("description", DESCRIPTIONS, ids=lambda d: d.name)
+@pytest.mark.parametrize("n_trials", [1, 7, 130])
+@pytest.mark.parametrize("p_present", [0.0, 0.5, 1.0])
+def test_random_states(
+    description: TaskDescription, n_trials: int, p_present: float
+) -> None:
+    rng = np.random.default_rng(n_trials)
+    for _ in range(3):
+        both(description, random_state(description, n_trials, rng, p_present=p_present))
+
+
+@pytest.mark.parametrize("description", DESCRIPTIONS, ids=lambda d: d.name)
+def test_some_trials_and_cached_static_shapes(description: TaskDescription) -> None:
+    rng = np.random.default_rng(5)
+    first = random_state(description, 40, rng)
+    later = random_state(description, 40, rng, step=2, previous=first)
+    trials = np.array([3, 3, 17, 39, 0])
+    fused = StepFeatures(description, fixed_static_geometry=True)
+    oracle = StepFeatures(description, fixed_static_geometry=True, fused=False)
+    for state, chosen in ((first, None), (later, trials), (later, None)):
+        assert_same_bits(
+            tuple(a.copy() for a in fused.compute(state, chosen)),
+            tuple(a.copy() for a in oracle.compute(state, chosen)),
+        )
+
+
+def test_shared_arrays_points_and_degenerate_segments() -> None:
+    """A batch axis of 1 (the beacon, the fence), points (no radius), a fence
+    reduced to one point, and overlapping discs floored at 0."""
+    state = small_state([[True, False, True], [False, False, False], [True] * 3])
+    both(SMALL, state)
+    robots, beacon, fence = state.groups
+    point_fence = GroupState(
+        fence.present, fence.attributes, segments=np.full((1, 1, 1, 2, 2), 6.0)
+    )
+    touching = GroupState(
+        robots.present,
+        robots.attributes,
+        centres=np.zeros_like(robots.shapes("centres")),
+        radii=robots.radii,
+    )
+    both(SMALL, TaskState(1, state.active, (touching, beacon, point_fence)))
+
+
+def test_non_finite_values_of_present_entities_propagate_alike() -> None:
+    rng = np.random.default_rng(9)
+    state = random_state(PREDATOR_PREY, 6, rng, p_present=1.0)
+    predators, prey, boundary = state.groups
+    centres = predators.shapes("centres").copy()
+    centres[0, 1, 0] = np.nan
+    centres[1, 2, 1] = np.inf
+    segments = boundary.shapes("segments").copy()
+    segments[2, 0, 1, 0, 0] = np.nan
+    odd = TaskState(
+        1,
+        state.active,
+        (
+            GroupState(
+                predators.present,
+                predators.attributes,
+                centres=centres,
+                radii=predators.radii,
+            ),
+            prey,
+            GroupState(boundary.present, boundary.attributes, segments=segments),
+        ),
+    )
+    both(PREDATOR_PREY, odd)
