@@ -38,4 +38,4 @@ def test_setting_up_a_batch_loads_every_loop() -> None:
         "loops = compiled._LOOPS\n"
         "print(len(loops), sum(loop.kernel is not None for loop in loops))"
     )
-    assert fresh(code) == "2 2"
+    assert fresh(code) == "3 3"

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 from sdbc_sim.network import NetworkShape, TeamNetworks, check_genomes, forward
 
+from sdbc_sim import compiled
+
 
 def sigma(a: float) -> float:
     return 1.0 / (1.0 + math.exp(-a))
@@ -55,3 +57,28 @@ def test_bad_genomes_are_named() -> None:
         check_genomes(np.array([np.zeros(9), np.full(9, np.nan)]), shape)
     with pytest.raises(ValueError, match="n_hidden must be >= 1"):
         NetworkShape(2, 0, 1)
+
+
+@pytest.mark.parametrize(
+    ("n_in", "n_hid", "n_out", "robots", "trials"),
+    [
+        (1, 1, 1, 1, 1),
+        (7, 5, 2, 3, 4),
+        (13, 10, 2, 4, 257),
+    ],
+)
+def test_the_compiled_sums_equal_the_numpy_form_to_the_bit(
+    n_in: int, n_hid: int, n_out: int, robots: int, trials: int, monkeypatch
+) -> None:
+    """A physics process (numba loaded) and a controller node (numpy) compute the
+    same outputs."""
+    rng = np.random.default_rng(n_in)
+    shape = NetworkShape(n_in, n_hid, n_out)
+    genomes = rng.uniform(-10.0, 10.0, (trials, shape.genome_length))
+    x = rng.uniform(-1.0, 1.0, (trials, robots, n_in))
+    x[0, 0, 0] = np.nan
+    compiled.load()
+    loops = TeamNetworks(shape, genomes).forward(x)
+    monkeypatch.setattr(compiled, "_loaded", False)
+    plain = TeamNetworks(shape, genomes).forward(x)
+    assert np.array_equal(loops.view(np.int64), plain.view(np.int64))

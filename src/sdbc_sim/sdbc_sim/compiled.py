@@ -64,7 +64,19 @@ def compiled(signature: str) -> Callable[[F], F]:
     return mark
 
 
+_loaded = False
+
+
 def load() -> None:
     """Loads (compiling if numba's cache lacks them) every loop marked so far."""
+    global _loaded
     for loop in _LOOPS:
         loop.load()
+    _loaded = True
+
+
+def loaded() -> bool:
+    """:func:`load` has run in this process: code with a loop and its numpy
+    formulation (the network) runs the loop from then on, and the numpy form in a
+    process that never loads numba (a controller node)."""
+    return _loaded

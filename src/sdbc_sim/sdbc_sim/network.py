@@ -15,6 +15,9 @@ bias c_k. Teams are homogeneous: every robot of a trial runs its trial's genome.
 The sums run in a fixed order (i = 0..I-1, then j = 0..H-1) as element-wise array
 operations rather than through BLAS, whose summation order may depend on the matrix
 sizes: a robot's outputs are then the same to the bit whatever else shares the batch.
+A process that steps the physics has numba loaded (:mod:`sdbc_sim.compiled`) and
+adds them in a compiled loop, in the same order, so to the same bits; a controller
+node, which never loads numba, adds them with numpy.
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from sdbc_sim import compiled
 
 
 @dataclass(frozen=True)
@@ -138,12 +143,34 @@ def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
     Returns:
         (U, N, B) unit values.
     """
+    if compiled.loaded():
+        a = np.empty((w.shape[1], x.shape[1], x.shape[2]))
+        _weighted_sums(x, w, b, a)
+        return sigmoid(a)
     a = np.repeat(b[:, None, :], x.shape[1], axis=1)
     tmp = np.empty_like(a)
     for i in range(w.shape[0]):
         np.multiply(w[i][:, None, :], x[i][None], out=tmp)
         a += tmp
     return sigmoid(a)
+
+
+@compiled.compiled(
+    "void(float64[:, :, ::1], float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1])"
+)
+def _weighted_sums(
+    x: np.ndarray, w: np.ndarray, b: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled; tested against the numpy form
+    """``out[u, n, t] = b[u, t] + w[0, u, t] x[0, n, t] + w[1, u, t] x[1, n, t]
+    + ...``, added in that order (the numpy form of :func:`_layer`)."""
+    n_trials = out.shape[2]
+    for u in range(out.shape[0]):
+        for n in range(out.shape[1]):
+            for t in range(n_trials):
+                out[u, n, t] = b[u, t]
+            for i in range(w.shape[0]):
+                for t in range(n_trials):
+                    out[u, n, t] += w[i, u, t] * x[i, n, t]
 
 
 def forward(genome: np.ndarray, shape: NetworkShape, x: np.ndarray) -> np.ndarray:
