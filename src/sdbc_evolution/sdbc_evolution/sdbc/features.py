@@ -312,7 +312,6 @@ class StepFeatures:
             if f.kind is FeatureKind.GROUP_DISTANCE
         }
         self._full = tuple(g.min_size == g.max_size for g in description.groups)
-        self._none_absent = [loops.none_absent(g.max_size) for g in description.groups]
         self._workspace = Workspace()
         self._static_shapes: dict[int, Shapes] = {}
         self._constant_counts = {
@@ -464,7 +463,7 @@ class StepFeatures:
                 total[f] = _slot_sum(d, axes)
 
         def mask(g: int) -> np.ndarray:
-            return self._none_absent[g] if full[g] else absence(g)
+            return loops.none_absent(groups[g].max_size) if full[g] else absence(g)
 
         fused = self.fused
         constant = self._constant_counts

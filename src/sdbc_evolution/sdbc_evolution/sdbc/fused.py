@@ -28,15 +28,21 @@ batch axis of 1 is shared by every trial.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from sdbc_sim.compiled import compiled
 
 
+# Made once per size and shared (the loops only read them): they stand in at
+# every step for what points and full groups lack.
+@functools.cache
 def no_radius(slots: int) -> np.ndarray:
     """The (S, 1) radii of points: subtracting +0 leaves every float as it is."""
     return np.zeros((slots, 1))
 
 
+@functools.cache
 def none_absent(slots: int) -> np.ndarray:
     """The (S, 1) absence mask of a group whose slots are always full."""
     return np.zeros((slots, 1), dtype=np.bool_)
