@@ -16,11 +16,13 @@ from PIL import Image
 from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.sdbc.characterisation import dimension_names
 from sdbc_evolution.study.analysis import FIGURES_DIR, REPORT_FILE, TABLES_DIR
+from sdbc_evolution.study.claims import ALPHA
 from sdbc_evolution.study.cli import main
 from sdbc_evolution.study.plan import study_plan
-from sdbc_evolution.study.presets import load_preset
+from sdbc_evolution.study.presets import load_preset, preset_from_dict
 from sdbc_evolution.study.relevance import task_specific_features
 from sdbc_evolution.study.rundirs import load_study
+from sdbc_evolution.study.runner import prepare_study_directory
 from sdbc_sim.tasks import make_task
 
 SMOKE = load_preset("smoke")
@@ -227,6 +229,74 @@ def test_missing_and_truncated_runs_are_named_and_the_rest_analysed(
         p.name == "resource_sharing/fit/run_01" and "truncated: " in p.reason
         for p in study.problems
     )
+
+
+@pytest.mark.slow
+def test_the_presets_predictions_are_judged_from_the_mann_whitney_table(
+    smoke: Path, tmp_path: Path
+) -> None:
+    """Predictions added to a finished study are judged on every task they
+    concern by their rule, from the same tests as the Mann-Whitney tables, and
+    come out the same from the digest."""
+    root = tmp_path / "predicted"
+    shutil.copytree(smoke, root, ignore=shutil.ignore_patterns("report"))
+    predictions = [
+        {"statement": "NS-SD+ beats Fit", "a": "ns-sd+", "b": "fit", "rule": "above"},
+        {
+            "statement": "NS-TS and NS-SD alike",
+            "a": "ns-ts",
+            "b": "ns-sd",
+            "rule": "no_difference",
+            "tasks": ["resource_sharing"],
+        },
+        {
+            "statement": "Fit not below NS-SD",
+            "a": "fit",
+            "b": "ns-sd",
+            "rule": "not_below",
+        },
+    ]
+    preset = preset_from_dict({**SMOKE.to_dict(), "predictions": predictions})
+    prepare_study_directory(preset, root)
+    assert main(["analyse", str(root)]) == 0
+    rows = read_csv(root / "report" / TABLES_DIR / "predictions.csv")
+    assert [(r["task"], r["a"]) for r in rows] == [
+        (task, p["a"])
+        for task in TASKS
+        for p in predictions
+        if task in p.get("tasks", [task])
+    ]
+    for row in rows:
+        p, effect = _pair_test(root / "report", row["task"], row["a"], row["b"])
+        assert float(row["p"]) == p
+        significant = p < ALPHA
+        if row["rule"] == "above":
+            expected = "held" if effect > 0.5 else "did not hold"
+            expected = expected if significant else "cannot tell"
+        elif row["rule"] == "no_difference":
+            expected = "did not hold" if significant else "held"
+        else:
+            expected = "did not hold" if significant and effect < 0.5 else "held"
+        assert row["outcome"] == expected, row
+    report = (root / "report" / REPORT_FILE).read_text()
+    section = report.split("## The study's predictions")[1].split("\n## ")[0]
+    assert section.count("| **") == len(rows)
+    assert "NS-SD+ not significantly below" not in section
+    assert "Fit not significantly below NS-SD" in section
+    again = tmp_path / "again"
+    digest = str(root / "report" / "digest")
+    assert main(["analyse", "--from-digest", digest, "--out", str(again)]) == 0
+    assert (again / REPORT_FILE).read_text() == report
+
+
+def _pair_test(report: Path, task: str, a: str, b: str) -> tuple[float, float]:
+    """p and A of ``a`` against ``b`` from the report's Mann-Whitney table."""
+    for row in read_csv(report / TABLES_DIR / f"mann_whitney_{task}.csv"):
+        if (row["a"], row["b"]) == (a, b):
+            return float(row["p"]), float(row["A"])
+        if (row["a"], row["b"]) == (b, a):
+            return float(row["p"]), 1 - float(row["A"])
+    raise AssertionError(f"no test of {a} against {b} in {task}")
 
 
 def test_task_specific_features_name_real_dimensions() -> None:

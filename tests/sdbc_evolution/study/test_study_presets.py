@@ -87,6 +87,45 @@ def test_run_configuration_takes_task_generations_and_task_settings() -> None:
             "unknown task 'no_such_task'",
         ),
         ({"seed": -1}, "seed"),
+        (
+            {
+                "predictions": [
+                    {"statement": "x", "a": "ns-sd", "b": "fit", "rule": "not_below"}
+                ]
+            },
+            r"predictions\.0\.a: 'ns-sd' is not a treatment of the study",
+        ),
+        (
+            {
+                "predictions": [
+                    {"statement": "x", "a": "fit", "b": "fit", "rule": "above"}
+                ]
+            },
+            "predictions.0: compares a treatment with itself",
+        ),
+        (
+            {
+                "predictions": [
+                    {"statement": "x", "a": "fit", "b": "ns-sd+", "rule": "above"},
+                    {"statement": "y", "a": "fit", "b": "ns-sd+", "rule": "bigger"},
+                ]
+            },
+            "predictions.1.rule",
+        ),
+        (
+            {
+                "predictions": [
+                    {
+                        "statement": "x",
+                        "a": "fit",
+                        "b": "ns-sd+",
+                        "rule": "above",
+                        "tasks": ["predator_prey"],
+                    }
+                ]
+            },
+            r"predictions\.0\.tasks: not in the study: \['predator_prey'\]",
+        ),
     ],
 )
 def test_bad_presets_are_named(change: dict, message: str) -> None:
@@ -120,3 +159,7 @@ def test_the_population_200_preset_tests_ns_sd_plus_on_predator_prey() -> None:
     assert preset.runs == 10
     chance = preset.treatments[2].transforms[-1].options.measure.name
     assert chance == "mi_chance"
+    assert [(p.a, p.b, p.rule) for p in preset.predictions] == [
+        ("ns-sd+", "ns-sd", "not_below"),
+        ("ns-sd+chance", "ns-sd", "not_below"),
+    ]

@@ -36,6 +36,7 @@ from sdbc_evolution.study.runner import (
     EXECUTION_FILE,
     Execution,
     StudyError,
+    prepare_study_directory,
     run_study,
 )
 from study_helpers import TINY, assert_same_study, run_contents, straight_study
@@ -217,6 +218,27 @@ def test_a_directory_of_another_study_is_refused(
     (root / STUDY_FILE).write_text("name: other\nruns: 1\n")
     with pytest.raises(StudyError, match="another preset"):
         run_study(other, root, execution=Execution(workers=1), quiet=True)
+
+
+def test_predictions_are_updated_in_a_study_of_the_same_runs(
+    tiny_preset: StudyPreset, tmp_path: Path
+) -> None:
+    """Predictions make no run: a study directory takes the preset's new ones,
+    and still refuses other runs however its predictions read."""
+    root = tmp_path / "study"
+    prepare_study_directory(tiny_preset, root)
+    prediction = {"statement": "NS-SD+ beats Fit", "a": "ns-sd+", "b": "fit"}
+    predicted = preset_from_dict(
+        {**TINY, "predictions": [{**prediction, "rule": "above"}]}
+    )
+    prepare_study_directory(predicted, root)
+    assert load_preset_file(root / STUDY_FILE).predictions == predicted.predictions
+    assert load_preset_file(root / STUDY_FILE).same_runs(tiny_preset)
+    more_runs = preset_from_dict(
+        {**TINY, "runs": 3, "predictions": [{**prediction, "rule": "above"}]}
+    )
+    with pytest.raises(StudyError, match="another preset"):
+        prepare_study_directory(more_runs, root)
 
 
 def test_runs_side_by_side_and_on_dask_equal_runs_in_process(

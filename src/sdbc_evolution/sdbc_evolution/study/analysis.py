@@ -23,6 +23,7 @@ before, with the same tables and figures to the byte. It writes::
       tables/cost.csv                measured rates per task
       tables/projection.csv          the paper preset's wall time on W workers
       tables/claims.csv              every claim with our p-value and verdict
+      tables/predictions.csv         the preset's own predictions, judged (if any)
       tables/problems.csv            runs left out, and why
 """
 
@@ -34,12 +35,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sdbc_sim.settings import load
 
 from sdbc_evolution.ga.treatments import treatment_directory
 from sdbc_evolution.run.results import npz_bytes
 from sdbc_evolution.study.claims import (
     Claim,
+    PredictionResult,
     exploration_claims,
+    judge_predictions,
     quality_claims,
     relevance_claims,
 )
@@ -58,6 +62,7 @@ from sdbc_evolution.study.digest import (
 )
 from sdbc_evolution.study.figures import plot_bests, plot_curves, plot_exploration
 from sdbc_evolution.study.findings import Analysis, AnalysisSettings, TaskAnalysis
+from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.quality import (
     best_curves,
     pairwise_tests,
@@ -341,7 +346,26 @@ def analyse_digest(
         claims += relevance_claims(ta.task, ta.relevance)
     for ta in tasks:
         claims += exploration_claims(ta.maps, settings.alpha)
+    predicted = _judge_predictions(digest, tasks, settings.alpha)
     tables = out / TABLES_DIR
+    if predicted:
+        _write_csv(
+            tables / "predictions.csv",
+            ["task", "prediction", "a", "b", "rule", "evidence", "p", "outcome"],
+            [
+                [
+                    r.task,
+                    r.prediction.statement,
+                    r.prediction.a,
+                    r.prediction.b,
+                    r.prediction.rule,
+                    r.evidence,
+                    r.p,
+                    r.outcome,
+                ]
+                for r in predicted
+            ],
+        )
     _write_csv(
         tables / "claims.csv",
         ["topic", "task", "claim", "paper", "ours", "p", "verdict"],
@@ -408,8 +432,26 @@ def analyse_digest(
         settings=settings,
         tasks=tasks,
         claims=claims,
+        predictions=predicted,
         projections=projected,
         out=out,
     )
     write_report(analysis, out / REPORT_FILE, command)
     return analysis
+
+
+def _judge_predictions(
+    digest: StudyDigest, tasks: list[TaskAnalysis], alpha: float
+) -> list[PredictionResult]:
+    """The preset's predictions, judged on every task they concern."""
+    if digest.preset is None:
+        return []
+    predictions = [
+        load(Prediction, p, where=f"preset.predictions.{k}")
+        for k, p in enumerate(digest.preset.predictions)
+    ]
+    return [
+        result
+        for ta in tasks
+        for result in judge_predictions(predictions, ta.task, ta.tests, alpha)
+    ]

@@ -23,12 +23,16 @@ a study of any other task gets no claim.
 
 The exploration claims apply the first rule to per-run numbers of the maps
 (:mod:`sdbc_evolution.study.exploration`): uniformity and high-fitness share.
+
+A study's own predictions (:mod:`sdbc_evolution.study.predictions`, declared in its
+preset) are judged by the same three rules, apart from the paper's claims:
+:func:`judge_predictions`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -37,6 +41,7 @@ import numpy as np
 from sdbc_evolution.ga.treatments import label
 from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.paper import is_paper_task, task_title
+from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.quality import PairTest, mann_whitney
 from sdbc_evolution.study.relevance import RelevanceTable
 
@@ -151,7 +156,8 @@ def not_below(test: PairTest, alpha: float = ALPHA) -> Verdict:
     return Verdict.DISAGREE if test.p < alpha and test.effect < 0.5 else Verdict.AGREE
 
 
-def _evidence(test: PairTest, what: str = "best fitness") -> str:
+def evidence(test: PairTest, what: str = "best fitness") -> str:
+    """A test in words: both medians, run counts, effect and p-value."""
     return (
         f"median {what} {label(test.a)} {_fmt(test.median_a)} vs {label(test.b)} "
         f"{_fmt(test.median_b)} (n = {test.n_a}, {test.n_b}); "
@@ -159,7 +165,7 @@ def _evidence(test: PairTest, what: str = "best fitness") -> str:
     )
 
 
-def _find(tests: list[PairTest], a: str, b: str) -> PairTest | None:
+def find_test(tests: list[PairTest], a: str, b: str) -> PairTest | None:
     """The test of a against b, turned round if it was run as b against a."""
     for t in tests:
         if (t.a, t.b) == (a, b):
@@ -205,7 +211,7 @@ def quality_claims(
                 task,
                 statement,
                 paper,
-                _evidence(test),
+                evidence(test),
                 test.p,
                 rule(test, alpha),
             )
@@ -215,40 +221,40 @@ def quality_claims(
         add(
             f"{label(variant)} reaches higher fitness than Fit in {title}",
             "p < 0.05",
-            _find(tests, variant, FIT),
+            find_test(tests, variant, FIT),
             above,
         )
     if task == "gate_escape":
         add(
             f"NS-TS above NS-SD+ in {title}",
             "p = 0.013",
-            _find(tests, NS_TS, NS_SD_PLUS),
+            find_test(tests, NS_TS, NS_SD_PLUS),
             above,
         )
     if task == "resource_sharing":
         add(
             f"NS-TS above NS-SD+ in {title}",
             "p = 0.025",
-            _find(tests, NS_TS, NS_SD_PLUS),
+            find_test(tests, NS_TS, NS_SD_PLUS),
             above,
         )
         add(
             f"NS-SD+ above NS-SD in {title}",
             "p < 0.01",
-            _find(tests, NS_SD_PLUS, NS_SD),
+            find_test(tests, NS_SD_PLUS, NS_SD),
             above,
         )
     else:
         add(
             f"NS-SD and NS-SD+ do not differ significantly in {title}",
             "significant only in resource sharing",
-            _find(tests, NS_SD_PLUS, NS_SD),
+            find_test(tests, NS_SD_PLUS, NS_SD),
             no_difference,
         )
     add(
         f"feature weighting never harms: NS-SD+ not below NS-SD in {title}",
         "NS-SD+ on average above NS-SD in every task",
-        _find(tests, NS_SD_PLUS, NS_SD),
+        find_test(tests, NS_SD_PLUS, NS_SD),
         not_below,
     )
     return claims
@@ -333,7 +339,7 @@ def exploration_claims(maps: ExplorationMaps, alpha: float = ALPHA) -> list[Clai
                     maps.task,
                     statement,
                     "figure 3 (resource sharing; 'similar' in the others)",
-                    _evidence(test, what),
+                    evidence(test, what),
                     test.p,
                     above(test, alpha),
                 )
@@ -362,3 +368,71 @@ def exploration_claims(maps: ExplorationMaps, alpha: float = ALPHA) -> list[Clai
         "high-fitness share",
     )
     return claims
+
+
+RULES: dict[str, Callable[[PairTest, float], Verdict]] = {
+    "above": above,
+    "no_difference": no_difference,
+    "not_below": not_below,
+}
+"""Each prediction rule's judgement of a test of ``a`` against ``b``."""
+
+OUTCOME: dict[Verdict, str] = {
+    Verdict.AGREE: "held",
+    Verdict.DISAGREE: "did not hold",
+    Verdict.INCONCLUSIVE: "cannot tell",
+}
+"""How the report words a verdict on a prediction."""
+
+
+@dataclass(frozen=True)
+class PredictionResult:
+    """A prediction judged on one task.
+
+    Attributes:
+        prediction: What was predicted.
+        task: The task.
+        evidence: Medians, run counts, effect and p-value.
+        p: The test's p-value.
+        effect: A = U / (n_a n_b), the chance that a run of ``a`` beats one of ``b``.
+        verdict: Agree (held), disagree (did not hold) or inconclusive.
+    """
+
+    prediction: Prediction
+    task: str
+    evidence: str
+    p: float
+    effect: float
+    verdict: Verdict
+
+    @property
+    def outcome(self) -> str:
+        return OUTCOME[self.verdict]
+
+
+def judge_predictions(
+    predictions: Sequence[Prediction],
+    task: str,
+    tests: list[PairTest],
+    alpha: float = ALPHA,
+) -> list[PredictionResult]:
+    """The predictions that concern ``task``, judged on its tests (a prediction
+    whose treatments have no usable runs there is left out)."""
+    results = []
+    for prediction in predictions:
+        if not prediction.concerns(task):
+            continue
+        test = find_test(tests, prediction.a, prediction.b)
+        if test is None:
+            continue
+        results.append(
+            PredictionResult(
+                prediction=prediction,
+                task=task,
+                evidence=evidence(test),
+                p=test.p,
+                effect=test.effect,
+                verdict=RULES[prediction.rule](test, alpha),
+            )
+        )
+    return results

@@ -153,6 +153,9 @@ class PresetSummary:
     name: str
     seed: int
     description: str
+    predictions: tuple[dict[str, Any], ...] = ()
+    """The preset's predictions as it declares them (plain data; the analysis
+    builds :class:`~sdbc_evolution.study.predictions.Prediction` from them)."""
 
 
 @dataclass(frozen=True)
@@ -255,6 +258,14 @@ def task_arrays(digest: TaskDigest) -> dict[str, np.ndarray]:
     return arrays
 
 
+def _preset_json(preset: PresetSummary) -> dict[str, Any]:
+    data = dataclasses.asdict(preset)
+    if not preset.predictions:
+        # A study without predictions keeps the digest it had before they existed.
+        del data["predictions"]
+    return data
+
+
 def study_json(digest: StudyDigest, som: SomSettings) -> dict[str, Any]:
     """The content of ``study.json`` (see :func:`write_digest`)."""
     return {
@@ -266,7 +277,7 @@ def study_json(digest: StudyDigest, som: SomSettings) -> dict[str, Any]:
         "expected": digest.expected,
         "problems": [[p.name, p.reason] for p in digest.problems],
         "sessions": list(digest.sessions),
-        "preset": None if digest.preset is None else dataclasses.asdict(digest.preset),
+        "preset": None if digest.preset is None else _preset_json(digest.preset),
         "preset_error": digest.preset_error,
         "som": dataclasses.asdict(som),
     }
@@ -277,7 +288,8 @@ def write_digest(digest: StudyDigest, directory: str | Path) -> list[Path]:
 
         study.json      format, version, study_dir, command, tasks, expected,
                         problems [[run, reason]], sessions (study log entries),
-                        preset {name, seed, description} or preset_error, som
+                        preset {name, seed, description, predictions (if
+                        any)} or preset_error, som
                         (the SOM settings)
         <task>.npz      sdbc_names (D,); bodies, max_steps; per run (R of them, the
                         study directory's order): run_names, configs (YAML),
@@ -501,6 +513,7 @@ def read_digest(directory: str | Path) -> StudyDigest:
                 name=str(preset_data["name"]),
                 seed=int(preset_data["seed"]),
                 description=str(preset_data["description"]),
+                predictions=tuple(dict(p) for p in preset_data.get("predictions", ())),
             )
         except (KeyError, TypeError, ValueError) as error:
             raise _fail(file, f"'preset': {error!r}") from None

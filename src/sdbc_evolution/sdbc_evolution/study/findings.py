@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from sdbc_evolution.study.claims import ALPHA, Claim
+from sdbc_evolution.study.claims import ALPHA, Claim, PredictionResult
 from sdbc_evolution.study.cost import CLUSTER_WORKERS, Projection, TaskCost
 from sdbc_evolution.study.digest import StudyDigest
 from sdbc_evolution.study.exploration import ExplorationMaps, SomSettings
@@ -70,6 +70,8 @@ class Analysis:
     settings: AnalysisSettings
     tasks: list[TaskAnalysis]
     claims: list[Claim]
+    predictions: list[PredictionResult]
+    """The preset's own predictions, judged (:mod:`.predictions`)."""
     projections: list[Projection]
     out: Path
 

@@ -47,6 +47,7 @@ from sdbc_evolution.run.config import (
     config_from_dict,
 )
 from sdbc_evolution.study.paper import PAPER_TASKS
+from sdbc_evolution.study.predictions import Prediction
 
 PRESET_DIR = Path("configs") / "study"
 """Where the named presets live, relative to the repository root."""
@@ -84,6 +85,9 @@ class StudyPreset:
     ] = tuple(PRESETS.values())
     """Treatments compared on every task: paper presets by name, or declared ones
     (mappings, as ``sdbc-evolve --treatment`` takes them)."""
+    predictions: tuple[Prediction, ...] = ()
+    """What the study is expected to show, judged by its analysis (see
+    :mod:`sdbc_evolution.study.predictions`); they decide nothing about the runs."""
     generations: dict[str, PositiveInt] = field(default_factory=dict)
     """Generations per task; a task left out takes its ``default_generations``."""
     task_config: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -115,6 +119,22 @@ class StudyPreset:
             "treatments",
             f"names that share a directory: {[t.name for t in self.treatments]}",
         )
+        names = {t.name for t in self.treatments}
+        for k, prediction in enumerate(self.predictions):
+            for side in ("a", "b"):
+                check(
+                    getattr(prediction, side) in names,
+                    f"predictions.{k}.{side}",
+                    f"{getattr(prediction, side)!r} is not a treatment of the study "
+                    f"({sorted(names)})",
+                )
+            check(
+                prediction.a != prediction.b,
+                f"predictions.{k}",
+                "compares a treatment with itself",
+            )
+            extra = sorted(set(prediction.tasks) - set(self.tasks))
+            check(not extra, f"predictions.{k}.tasks", f"not in the study: {extra}")
         for key in ("generations", "task_config"):
             extra = sorted(set(getattr(self, key)) - set(self.tasks))
             check(not extra, key, f"names tasks not in the study: {extra}")
@@ -198,7 +218,16 @@ class StudyPreset:
             "generations": {t: self.generations_of(t) for t in self.tasks},
             "task_config": {t: dict(c) for t, c in self.task_config.items()},
             "experiment": to_plain(self.experiment),
+            **(
+                {"predictions": [to_plain(p) for p in self.predictions]}
+                if self.predictions
+                else {}
+            ),
         }
+
+    def same_runs(self, other: StudyPreset) -> bool:
+        """Whether ``other`` makes the same runs (its predictions may differ)."""
+        return _runs_part(self.to_dict()) == _runs_part(other.to_dict())
 
     def sizes(self) -> dict[str, Any]:
         """The sizes that decide a study's cost, as a reader wants them."""
@@ -211,6 +240,10 @@ class StudyPreset:
             "re-evaluation trials": config.evaluation.reevaluation_trials,
             "generations": {t: self.generations_of(t) for t in self.tasks},
         }
+
+
+def _runs_part(data: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in data.items() if k != "predictions"}
 
 
 def preset_from_dict(data: Any, where: str = "preset") -> StudyPreset:

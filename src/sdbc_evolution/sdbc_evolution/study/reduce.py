@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from sdbc_sim.settings import to_plain
 
 from sdbc_evolution.study.cost import workers_per_generation
 from sdbc_evolution.study.digest import (
@@ -134,7 +135,12 @@ def reduce_study(
         except PresetError as error:
             preset_error = str(error)
         else:
-            preset = PresetSummary(loaded.name, loaded.seed, loaded.description)
+            preset = PresetSummary(
+                name=loaded.name,
+                seed=loaded.seed,
+                description=loaded.description,
+                predictions=tuple(to_plain(p) for p in loaded.predictions),
+            )
     label = str(study.root) if study_dir is None else study_dir
     return StudyDigest(
         study_dir=label,

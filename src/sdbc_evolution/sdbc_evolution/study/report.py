@@ -683,6 +683,8 @@ def write_report(
         lines += ["Runs left out:", ""]
         lines += _problem_lines(analysis.problems, set(study.tasks()))
         lines += [""]
+    if analysis.predictions:
+        lines += _predictions_section(analysis)
     if paper_tasks:
         lines += _claims_section(analysis)
     for ta in analysis.tasks:
@@ -718,4 +720,37 @@ def _claims_section(analysis: Analysis) -> list[str]:
             + ": no claim of the paper applies there.",
             "",
         ]
+    return lines
+
+
+def _predictions_section(analysis: Analysis) -> list[str]:
+    lines = [
+        "## The study's predictions",
+        "",
+        "What the preset predicted before its runs, judged on each run's best "
+        f"fitness by a two-sided Mann-Whitney test at alpha = "
+        f"{analysis.settings.alpha}: *held* when the test agrees, *did not hold* "
+        "when it says the opposite, *cannot tell* when a predicted difference does "
+        "not show. A prediction of no difference (or of not below) holds by the "
+        "absence of a significant difference, which few runs give easily: A = "
+        "U / (n_a n_b), the chance that a run of the first treatment beats one of "
+        "the second, says how close the treatments were. The rules are in "
+        "`sdbc_evolution/study/claims.py` (`judge_predictions`).",
+        "",
+    ]
+    rows = [
+        [
+            str(i + 1),
+            r.prediction.statement,
+            task_title(r.task),
+            r.prediction.rule_text(),
+            r.evidence,
+            _p(r.p),
+            f"**{r.outcome}**",
+        ]
+        for i, r in enumerate(analysis.predictions)
+    ]
+    lines += markdown_table(
+        ["#", "prediction", "task", "rule", "ours", "p", "outcome"], rows
+    )
     return lines

@@ -152,7 +152,8 @@ Say = Callable[[str], None]
 
 
 def prepare_study_directory(preset: StudyPreset, root: Path) -> None:
-    """Creates ``root`` with ``study.yaml``, or checks that it holds this preset."""
+    """Creates ``root`` with ``study.yaml``, or checks that it holds this preset
+    (the same runs; its predictions are updated to the preset's)."""
     root.mkdir(parents=True, exist_ok=True)
     path = root / STUDY_FILE
     if path.exists():
@@ -160,12 +161,15 @@ def prepare_study_directory(preset: StudyPreset, root: Path) -> None:
             existing = load_preset_file(path)
         except ValueError as error:
             raise StudyError(f"{path} cannot be read: {error}") from None
-        if existing.to_dict() != preset.to_dict():
+        if not existing.same_runs(preset):
             raise StudyError(
                 f"{root} holds a study of another preset ({existing.name!r}, or the "
                 f"same name with other settings): choose another output directory"
             )
-        return
+        if existing.predictions == preset.predictions:
+            return
+        # Predictions judge the runs and make none of them: the analysis reads
+        # the preset's current ones.
     atomic_write_bytes(path, dump_preset(preset).encode())
 
 
