@@ -312,7 +312,7 @@ class Foraging(Task[ForagingTrials]):
         ix = trials.items[:, None, :, 0] - pos[..., 0, None]
         iy = trials.items[:, None, :, 1] - pos[..., 1, None]
         d = norm(ix, iy)
-        d[np.broadcast_to((trials.carrier != _FREE)[:, None, :], d.shape)] = np.inf
+        np.copyto(d, np.inf, where=(trials.carrier != _FREE)[:, None, :])
         return ix, iy, d
 
     def sensors(self, trials: ForagingTrials, bodies: BodyState) -> np.ndarray:
@@ -323,7 +323,7 @@ class Foraging(Task[ForagingTrials]):
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         ix, iy, d = self._item_offsets(trials, pos)
         nearest = np.argmin(d, axis=-1)[..., None]
-        dn = np.take_along_axis(d, nearest, axis=-1)[..., 0]
+        dn = d.min(axis=-1)
         seen = dn <= c.item_sensor_range
         out[..., 0] = np.where(seen, normalised_reading(dn, c.item_sensor_range), 1.0)
         ib = bearing(
@@ -356,12 +356,14 @@ class Foraging(Task[ForagingTrials]):
     ) -> np.ndarray:
         c = self.config
         pos = bodies.position
-        n = c.n_robots
         # Pick-ups, robot by robot in index order (an item goes to the first).
         _, _, d = self._item_offsets(trials, pos)
         reach = c.robot_radius + c.item_radius
         rows = np.arange(pos.shape[0])
-        for i in range(n):
+        # A pick-up only takes items away from the robots after it, so a robot
+        # with no free item in reach now has none later in the loop either.
+        reaching = ((trials.load < 0) & (d.min(axis=-1) <= reach)).any(axis=0)
+        for i in np.flatnonzero(reaching):
             nearest = np.argmin(d[:, i], axis=-1)
             takes = (trials.load[:, i] < 0) & (d[rows, i, nearest] <= reach)
             if not takes.any():
