@@ -13,13 +13,13 @@ A preset that asks a question (does NS-SD+ still fall below NS-SD at population
 This module declares them (a leaf of the study package: presets import it).
 :func:`sdbc_evolution.study.claims.judge_predictions` judges each on every task it
 names (default: all of the study's) with the rules of the paper's claims, on each
-run's best fitness: a two-sided
-Mann-Whitney test at the analysis's alpha, effect A = U / (n_a n_b). The report
-gives each its own row, apart from the paper's claims: *held*, *did not hold*, or
-*cannot tell* (a significant difference was predicted and the runs show none).
-A prediction that held under ``no_difference`` or ``not_below`` is the absence of
-a significant difference, which few runs give easily: the effect A beside it says
-how close the treatments were.
+run's best fitness: a two-sided Mann-Whitney test at the analysis's alpha, effect
+A = U / (n_a n_b). The report gives each its own row, apart from the paper's
+claims: *held*, *did not hold*, or *cannot tell* (a significant difference was
+predicted and the runs show none). A prediction that held under
+``no_difference`` or ``not_below`` is only the absence of a significant
+difference, which few runs give all too easily: the effect A beside it says how
+close the treatments were.
 """
 
 from __future__ import annotations

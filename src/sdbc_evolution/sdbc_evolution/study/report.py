@@ -727,14 +727,14 @@ def _predictions_section(analysis: Analysis) -> list[str]:
     lines = [
         "## The study's predictions",
         "",
-        "What the preset predicted before its runs, judged on each run's best "
+        "What the study's preset predicts, judged on each run's best "
         f"fitness by a two-sided Mann-Whitney test at alpha = "
         f"{analysis.settings.alpha}: *held* when the test agrees, *did not hold* "
         "when it says the opposite, *cannot tell* when a predicted difference does "
         "not show. A prediction of no difference (or of not below) holds by the "
-        "absence of a significant difference, which few runs give easily: A = "
-        "U / (n_a n_b), the chance that a run of the first treatment beats one of "
-        "the second, says how close the treatments were. The rules are in "
+        "absence of a significant difference, which few runs give all too easily: "
+        "A = U / (n_a n_b), the chance that a run of the first treatment beats one "
+        "of the second, says how close the treatments were. The rules are in "
         "`sdbc_evolution/study/claims.py` (`judge_predictions`).",
         "",
     ]
