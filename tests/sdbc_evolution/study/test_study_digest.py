@@ -184,6 +184,14 @@ def test_a_bad_digest_is_refused_with_the_problem_named(
     _damage_npz(bad_som / "gate_escape.npz", {"som_treatments": unknown})
     assert "'som_treatments'" in refused(bad_som)
 
+    bad_prediction = copy()
+    data = json.loads((bad_prediction / STUDY_JSON).read_text())
+    data["preset"]["predictions"] = [
+        {"statement": "x", "a": "fit", "b": "ns-sd+", "rule": "bigger"}
+    ]
+    (bad_prediction / STUDY_JSON).write_text(json.dumps(data))
+    assert "predictions.0.rule" in refused(bad_prediction)
+
     # Through the command line: exit status 2, the problem on stderr.
     assert main(["analyse", "--from-digest", str(no_curve)]) == 2
     assert "no array 'curve'" in capsys.readouterr().err

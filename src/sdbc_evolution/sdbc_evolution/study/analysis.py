@@ -35,7 +35,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sdbc_sim.settings import load
 
 from sdbc_evolution.ga.treatments import treatment_directory
 from sdbc_evolution.run.results import npz_bytes
@@ -62,7 +61,6 @@ from sdbc_evolution.study.digest import (
 )
 from sdbc_evolution.study.figures import plot_bests, plot_curves, plot_exploration
 from sdbc_evolution.study.findings import Analysis, AnalysisSettings, TaskAnalysis
-from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.quality import (
     best_curves,
     pairwise_tests,
@@ -446,10 +444,7 @@ def _judge_predictions(
     """The preset's predictions, judged on every task they concern."""
     if digest.preset is None:
         return []
-    predictions = [
-        load(Prediction, p, where=f"preset.predictions.{k}")
-        for k, p in enumerate(digest.preset.predictions)
-    ]
+    predictions = digest.preset.predictions
     return [
         result
         for ta in tasks

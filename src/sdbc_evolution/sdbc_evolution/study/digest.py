@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from sdbc_sim.settings import load
 
 from sdbc_evolution.ga.treatments import PAPER_TREATMENTS
 from sdbc_evolution.run.config import (
@@ -49,6 +50,7 @@ from sdbc_evolution.run.config import (
 )
 from sdbc_evolution.run.results import npz_bytes
 from sdbc_evolution.study.exploration import ExplorationMaps, SomSettings
+from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.rundirs import RunProblem
 
 DIGEST_DIR = "digest"
@@ -153,9 +155,8 @@ class PresetSummary:
     name: str
     seed: int
     description: str
-    predictions: tuple[dict[str, Any], ...] = ()
-    """The preset's predictions as it declares them (plain data; the analysis
-    builds :class:`~sdbc_evolution.study.predictions.Prediction` from them)."""
+    predictions: tuple[Prediction, ...] = ()
+    """The preset's own predictions, which the analysis judges."""
 
 
 @dataclass(frozen=True)
@@ -513,7 +514,10 @@ def read_digest(directory: str | Path) -> StudyDigest:
                 name=str(preset_data["name"]),
                 seed=int(preset_data["seed"]),
                 description=str(preset_data["description"]),
-                predictions=tuple(dict(p) for p in preset_data.get("predictions", ())),
+                predictions=tuple(
+                    load(Prediction, p, where=f"predictions.{k}")
+                    for k, p in enumerate(preset_data.get("predictions", ()))
+                ),
             )
         except (KeyError, TypeError, ValueError) as error:
             raise _fail(file, f"'preset': {error!r}") from None

@@ -1,5 +1,5 @@
 """A study's own predictions: what its author expects of the treatments it compares,
-declared in the preset before the runs and judged by the analysis.
+declared in the preset and judged by the analysis.
 
 A preset that asks a question (does NS-SD+ still fall below NS-SD at population
 200? does my weighting beat the MI?) states its expected answer as predictions::
@@ -10,7 +10,8 @@ A preset that asks a question (does NS-SD+ still fall below NS-SD at population
         b: ns-sd
         rule: not_below
 
-This module declares them (a leaf of the study package: presets import it).
+This module declares them (a leaf of the study package: presets and the digest
+import it).
 :func:`sdbc_evolution.study.claims.judge_predictions` judges each on every task it
 names (default: all of the study's) with the rules of the paper's claims, on each
 run's best fitness: a two-sided Mann-Whitney test at the analysis's alpha, effect

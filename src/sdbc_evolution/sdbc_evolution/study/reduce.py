@@ -12,7 +12,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-from sdbc_sim.settings import to_plain
 
 from sdbc_evolution.study.cost import workers_per_generation
 from sdbc_evolution.study.digest import (
@@ -139,7 +138,7 @@ def reduce_study(
                 name=loaded.name,
                 seed=loaded.seed,
                 description=loaded.description,
-                predictions=tuple(to_plain(p) for p in loaded.predictions),
+                predictions=loaded.predictions,
             )
     label = str(study.root) if study_dir is None else study_dir
     return StudyDigest(
