@@ -21,6 +21,7 @@ differ from the ones numba calls in the last bit.
 from __future__ import annotations
 
 import functools
+import types
 from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
@@ -30,18 +31,37 @@ F = TypeVar("F", bound=Callable[..., Any])
 class _Loop:
     """A Python function and the numba kernel compiled from it once loaded."""
 
-    def __init__(self, fn: Callable[..., Any], signature: str) -> None:
+    def __init__(
+        self,
+        fn: Callable[..., Any],
+        signature: str,
+        calls: tuple[Callable[..., Any], ...],
+    ) -> None:
         functools.update_wrapper(self, fn)
         self.fn = fn
         self.signature = signature
+        self.calls = calls
         self.kernel: Callable[..., Any] | None = None
 
     def load(self) -> Callable[..., Any]:
         if self.kernel is None:
             import numba
 
+            fn = self.fn
+            if self.calls:
+                # The loop sees the compiled helpers under their own names; the
+                # module keeps the plain functions.
+                scope = dict(fn.__globals__)
+                for helper in self.calls:
+                    scope[helper.__name__] = numba.njit(
+                        cache=True, error_model="numpy"
+                    )(helper)
+                fn = types.FunctionType(
+                    fn.__code__, scope, fn.__name__, fn.__defaults__, fn.__closure__
+                )
+                fn.__qualname__ = self.fn.__qualname__
             self.kernel = numba.njit(self.signature, cache=True, error_model="numpy")(
-                self.fn
+                fn
             )
         return self.kernel
 
@@ -52,12 +72,16 @@ class _Loop:
 _LOOPS: list[_Loop] = []
 
 
-def compiled(signature: str) -> Callable[[F], F]:
+def compiled(
+    signature: str, *, calls: tuple[Callable[..., Any], ...] = ()
+) -> Callable[[F], F]:
     """Marks ``fn`` as a loop compiled by numba with ``signature`` (nopython,
-    cached on disk, numpy's error model), loaded by :func:`load`."""
+    cached on disk, numpy's error model), loaded by :func:`load`. ``calls`` are
+    plain functions of the loop's module that the loop calls: they are compiled
+    with it (for the types it passes), so that two loops can share one."""
 
     def mark(fn: F) -> F:
-        loop = _Loop(fn, signature)
+        loop = _Loop(fn, signature, calls)
         _LOOPS.append(loop)
         return cast(F, loop)
 

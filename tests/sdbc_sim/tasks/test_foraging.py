@@ -8,12 +8,15 @@ centre.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import TrialStepper, run_batch
+from sdbc_sim.sensors import bearing, norm, normalised_reading
+from sdbc_sim.task import BodyState
 from sdbc_sim.task_state import TaskState
 from sdbc_sim.tasks import make_task
 from sdbc_sim.tasks.foraging import Foraging, ForagingConfig
@@ -205,3 +208,113 @@ def test_a_trial_is_the_same_alone_in_a_batch_in_any_space_and_process(
         n_items=2,
         max_steps=150,
     )
+
+
+def array_item_readings(task: Foraging, trials, bodies) -> np.ndarray:
+    """Inputs 0 and 1 (nearest free item) as whole (B, N, M) arrays: the
+    formulation the compiled loop replaced, kept as its oracle."""
+    c = task.config
+    pos = bodies.position
+    ix = trials.items[:, None, :, 0] - pos[..., 0, None]
+    iy = trials.items[:, None, :, 1] - pos[..., 1, None]
+    d = norm(ix, iy)
+    np.copyto(d, np.inf, where=(trials.carrier != -1)[:, None, :])
+    nearest = np.argmin(d, axis=-1)[..., None]
+    dn = d.min(axis=-1)
+    seen = dn <= c.item_sensor_range
+    ib = bearing(
+        np.take_along_axis(ix, nearest, axis=-1)[..., 0],
+        np.take_along_axis(iy, nearest, axis=-1)[..., 0],
+        bodies.cos_angle,
+        bodies.sin_angle,
+    )
+    return np.stack(
+        [
+            np.where(seen, normalised_reading(dn, c.item_sensor_range), 1.0),
+            np.where(seen, ib / np.pi, 0.0),
+        ],
+        axis=-1,
+    )
+
+
+def array_pick_up_and_carry(task: Foraging, trials, pos: np.ndarray) -> None:
+    """The pick-ups and the carrying of one step as whole arrays, robot by robot:
+    the formulation the compiled loop replaced, kept as its oracle."""
+    c = task.config
+    ix = trials.items[:, None, :, 0] - pos[..., 0, None]
+    iy = trials.items[:, None, :, 1] - pos[..., 1, None]
+    d = norm(ix, iy)
+    np.copyto(d, np.inf, where=(trials.carrier != -1)[:, None, :])
+    reach = c.robot_radius + c.item_radius
+    rows = np.arange(pos.shape[0])
+    for i in range(pos.shape[1]):
+        nearest = np.argmin(d[:, i], axis=-1)
+        takes = (trials.load[:, i] < 0) & (d[rows, i, nearest] <= reach)
+        t, k = rows[takes], nearest[takes]
+        trials.load[t, i] = k
+        trials.carrier[t, k] = i
+        trials.picked[t] += 1
+        d[t, :, k] = np.inf
+    t, k = np.nonzero(trials.carrier >= 0)
+    trials.items[t, k] = pos[t, trials.carrier[t, k]]
+
+
+def crowded_trials(task: Foraging, n_trials: int, seed: int):
+    """Trials whose robots stand among their items: on a coarse grid (so that
+    distances tie and fall exactly on the reach and the sensor range), some items
+    carried, some delivered, some trials with no free item left; away from the
+    nest, so that the step delivers nothing."""
+    c = task.config
+    n, m = c.n_robots, c.n_items
+    rng = np.random.default_rng(seed)
+    trials, _, _ = task.reset([np.random.default_rng(t) for t in range(n_trials)])
+    trials.items[:] = rng.integers(0, 13, (n_trials, m, 2)) * 0.5 + 15.0
+    pos = rng.integers(0, 13, (n_trials, n, 2)) * 0.5 + 15.0
+    pos[: n_trials // 4] += rng.normal(0.0, 1.0, (n_trials // 4, n, 2))
+    angle = rng.uniform(-math.pi, math.pi, (n_trials, n))
+    state = rng.integers(0, 3, (n_trials, m))
+    trials.carrier[:] = np.where(state == 0, -2, -1)
+    trials.carrier[-2:] = -2
+    for t in range(n_trials):
+        free_robots = iter(rng.permutation(n))
+        for k in np.flatnonzero(state[t] == 1)[:n]:
+            i = next(free_robots)
+            if trials.carrier[t, k] == -1 and rng.random() < 0.5:
+                trials.carrier[t, k], trials.load[t, i] = i, k
+    bodies = BodyState(
+        position=pos,
+        angle=angle,
+        velocity=np.zeros((n_trials, n, 2)),
+        angular_velocity=np.zeros((n_trials, n)),
+        enabled=np.ones((n_trials, n), dtype=bool),
+        anchored=np.zeros((n_trials, n), dtype=bool),
+        cos_angle=np.cos(angle),
+        sin_angle=np.sin(angle),
+    )
+    return trials, bodies
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_item_sensor_and_pick_ups_equal_the_array_formulation(
+    seed: int,
+) -> None:
+    """To the bit, on crowded trials (ties, distances exactly at the reach and the
+    range, carried and delivered items, no free item left), for a strided view of
+    the positions as the engine passes them and for contiguous ones."""
+    task = make_task("foraging", n_items=9, item_sensor_range=2.0)
+    trials, bodies = crowded_trials(task, 64, seed)
+    want = array_item_readings(task, trials, bodies)
+    got = task.sensors(trials, bodies)[..., 0:2]
+    np.testing.assert_array_equal(got, want)
+    assert (want[..., 0] < 1.0).any() and (want[..., 0] == 1.0).any()
+
+    expected = copy.deepcopy(trials)
+    array_pick_up_and_carry(task, expected, bodies.position)
+    # The engine hands the rules positions as a strided view of its state rows.
+    rows = np.zeros((*bodies.position.shape[:2], 5))
+    rows[..., 0:2] = bodies.position
+    bodies.position = rows[..., 0:2]
+    task.update(trials, bodies, 0)
+    assert expected.picked.sum() > 0
+    for name in ("items", "carrier", "load", "picked"):
+        np.testing.assert_array_equal(getattr(trials, name), getattr(expected, name))

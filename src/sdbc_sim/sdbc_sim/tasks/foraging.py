@@ -77,6 +77,7 @@ from sdbc_sim.arena import (
     wall_group,
     wall_state,
 )
+from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     bearing,
@@ -304,34 +305,26 @@ class Foraging(Task[ForagingTrials]):
         )
         return trials, position, angle
 
-    def _item_offsets(
-        self, trials: ForagingTrials, pos: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(B, N, M) offsets from each robot to each item, and centre distances,
-        inf for items that are not free."""
-        ix = trials.items[:, None, :, 0] - pos[..., 0, None]
-        iy = trials.items[:, None, :, 1] - pos[..., 1, None]
-        d = norm(ix, iy)
-        np.copyto(d, np.inf, where=(trials.carrier != _FREE)[:, None, :])
-        return ix, iy, d
-
     def sensors(self, trials: ForagingTrials, bodies: BodyState) -> np.ndarray:
         c = self.config
         pos = bodies.position
         b, n = bodies.angle.shape
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
-        ix, iy, d = self._item_offsets(trials, pos)
-        nearest = np.argmin(d, axis=-1)[..., None]
-        dn = d.min(axis=-1)
+        dn = np.empty((b, n))
+        ix = np.empty((b, n))
+        iy = np.empty((b, n))
+        _nearest_free_items(
+            np.ascontiguousarray(trials.items),
+            np.ascontiguousarray(trials.carrier),
+            np.ascontiguousarray(pos),
+            dn,
+            ix,
+            iy,
+        )
         seen = dn <= c.item_sensor_range
         out[..., 0] = np.where(seen, normalised_reading(dn, c.item_sensor_range), 1.0)
-        ib = bearing(
-            np.take_along_axis(ix, nearest, axis=-1)[..., 0],
-            np.take_along_axis(iy, nearest, axis=-1)[..., 0],
-            cos_h,
-            sin_h,
-        )
+        ib = bearing(ix, iy, cos_h, sin_h)
         out[..., 1] = np.where(seen, ib / np.pi, 0.0)
         nx = self.nest_centre[0] - pos[..., 0]
         ny = self.nest_centre[1] - pos[..., 1]
@@ -356,28 +349,21 @@ class Foraging(Task[ForagingTrials]):
     ) -> np.ndarray:
         c = self.config
         pos = bodies.position
-        # Pick-ups, robot by robot in index order (an item goes to the first).
-        _, _, d = self._item_offsets(trials, pos)
-        reach = c.robot_radius + c.item_radius
-        rows = np.arange(pos.shape[0])
-        # A pick-up only takes items away from the robots after it, so a robot
-        # with no free item in reach now has none later in the loop either.
-        reaching = ((trials.load < 0) & (d.min(axis=-1) <= reach)).any(axis=0)
-        for i in np.flatnonzero(reaching):
-            nearest = np.argmin(d[:, i], axis=-1)
-            takes = (trials.load[:, i] < 0) & (d[rows, i, nearest] <= reach)
-            if not takes.any():
-                continue
-            t, k = rows[takes], nearest[takes]
-            trials.load[t, i] = k
-            trials.carrier[t, k] = i
-            trials.picked[t] += 1
-            d[t, :, k] = np.inf
-        # Carried items ride on their robots.
-        carried = trials.carrier >= 0
-        if carried.any():
-            t, k = np.nonzero(carried)
-            trials.items[t, k] = pos[t, trials.carrier[t, k]]
+        arrays = [trials.items, trials.carrier, trials.load, trials.picked]
+        work = [np.ascontiguousarray(a) for a in arrays]
+        items, carrier, load, picked = work
+        _pick_up_and_carry(
+            items,
+            carrier,
+            load,
+            picked,
+            np.ascontiguousarray(pos),
+            c.robot_radius + c.item_radius,
+        )
+        # The loop writes in place; an array that was not contiguous was copied.
+        for a, w in zip(arrays, work, strict=True):
+            if w is not a:
+                a[...] = w
         nest = norm(
             pos[..., 0] - self.nest_centre[0], pos[..., 1] - self.nest_centre[1]
         )
@@ -445,6 +431,95 @@ class Foraging(Task[ForagingTrials]):
             axis=1,
         )
         return fitness, characterisation
+
+
+def _nearest_free_item(
+    items: np.ndarray, carrier: np.ndarray, t: int, px: float, py: float
+) -> tuple[float, int]:  # pragma: no cover - compiled into the loops below
+    """The centre distance from (px, py) to trial ``t``'s nearest free item and
+    its index: the first of the smallest distances, as ``argmin`` picks it (inf
+    and 0 when no item is free). The distance is sqrt(dx dx + dy dy), the IEEE
+    operations of :func:`~sdbc_sim.sensors.norm`. Only an item whose squared
+    distance is below the best one's can be strictly nearer (sqrt is correctly
+    rounded, so monotone), so only those pay for a square root."""
+    best = np.inf
+    best_squared = np.inf
+    nearest = 0
+    for k in range(items.shape[1]):
+        if carrier[t, k] != _FREE:
+            continue
+        dx = items[t, k, 0] - px
+        dy = items[t, k, 1] - py
+        squared = dx * dx + dy * dy
+        if squared < best_squared:
+            d = np.sqrt(squared)
+            if d < best:
+                best = d
+                nearest = k
+            best_squared = squared
+    return best, nearest
+
+
+@compiled(
+    "void(float64[:, :, ::1], int64[:, ::1], float64[:, :, ::1], float64[:, ::1], "
+    "float64[:, ::1], float64[:, ::1])",
+    calls=(_nearest_free_item,),
+)
+def _nearest_free_items(
+    items: np.ndarray,
+    carrier: np.ndarray,
+    pos: np.ndarray,
+    distance: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through Foraging.sensors
+    """Per robot ((B, N) outputs), the nearest free item's centre distance (inf
+    when no item is free) and its offset from the robot's centre.
+
+    A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays this made (B, N, M)
+    offsets and distances at every step, twice; the readings are the array
+    formulation's to the bit (``tests/sdbc_sim/tasks/test_foraging.py``).
+    """
+    for t in range(pos.shape[0]):
+        for i in range(pos.shape[1]):
+            px = pos[t, i, 0]
+            py = pos[t, i, 1]
+            distance[t, i], k = _nearest_free_item(items, carrier, t, px, py)
+            dx[t, i] = items[t, k, 0] - px
+            dy[t, i] = items[t, k, 1] - py
+
+
+@compiled(
+    "void(float64[:, :, ::1], int64[:, ::1], int64[:, ::1], int64[::1], "
+    "float64[:, :, ::1], float64)",
+    calls=(_nearest_free_item,),
+)
+def _pick_up_and_carry(
+    items: np.ndarray,
+    carrier: np.ndarray,
+    load: np.ndarray,
+    picked: np.ndarray,
+    pos: np.ndarray,
+    reach: float,
+) -> None:  # pragma: no cover - compiled; tested through Foraging.update
+    """The pick-ups of one step, in place: robot by robot in index order, a robot
+    that carries nothing takes the nearest free item if its centre is within
+    ``reach``, so an item goes to the first robot that reaches for it; then every
+    carried item moves to its robot's centre."""
+    for t in range(pos.shape[0]):
+        for i in range(pos.shape[1]):
+            if load[t, i] >= 0:
+                continue
+            d, k = _nearest_free_item(items, carrier, t, pos[t, i, 0], pos[t, i, 1])
+            if d <= reach:
+                load[t, i] = k
+                carrier[t, k] = i
+                picked[t] += 1
+        for k in range(items.shape[1]):
+            robot = carrier[t, k]
+            if robot >= 0:
+                items[t, k, 0] = pos[t, robot, 0]
+                items[t, k, 1] = pos[t, robot, 1]
 
 
 TASK = Foraging
