@@ -153,6 +153,24 @@ class BodyState:
     cos_angle: np.ndarray
     sin_angle: np.ndarray
 
+    @classmethod
+    def at_rest(cls, position: np.ndarray, angle: np.ndarray) -> BodyState:
+        """Bodies standing still at ``position`` (B, R, 2) with headings ``angle``
+        (B, R), all enabled and none anchored: a state to call a task's sensors,
+        actuation and rules with outside the engine (as a task's tests do)."""
+        angle = np.asarray(angle, dtype=np.float64)
+        shape = angle.shape
+        return cls(
+            position=position,
+            angle=angle,
+            velocity=np.zeros((*shape, 2)),
+            angular_velocity=np.zeros(shape),
+            enabled=np.ones(shape, dtype=bool),
+            anchored=np.zeros(shape, dtype=bool),
+            cos_angle=np.cos(angle),
+            sin_angle=np.sin(angle),
+        )
+
     @property
     def speed(self) -> np.ndarray:
         """(B, R) linear speed |v|."""

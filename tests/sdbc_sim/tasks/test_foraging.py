@@ -281,16 +281,7 @@ def crowded_trials(task: Foraging, n_trials: int, seed: int):
             i = next(free_robots)
             if trials.carrier[t, k] == -1 and rng.random() < 0.5:
                 trials.carrier[t, k], trials.load[t, i] = i, k
-    bodies = BodyState(
-        position=pos,
-        angle=angle,
-        velocity=np.zeros((n_trials, n, 2)),
-        angular_velocity=np.zeros((n_trials, n)),
-        enabled=np.ones((n_trials, n), dtype=bool),
-        anchored=np.zeros((n_trials, n), dtype=bool),
-        cos_angle=np.cos(angle),
-        sin_angle=np.sin(angle),
-    )
+    bodies = BodyState.at_rest(pos, angle)
     return trials, bodies
 
 

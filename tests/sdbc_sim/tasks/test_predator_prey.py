@@ -12,15 +12,22 @@ step.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
+from sdbc_sim.sensors import bearing, norm, robot_sum, wrap_angle
+from sdbc_sim.task import BodyState
 from sdbc_sim.task_state import TaskState
 from sdbc_sim.tasks import make_task
-from sdbc_sim.tasks.predator_prey import PredatorPrey, PredatorPreyConfig
+from sdbc_sim.tasks.predator_prey import (
+    PredatorPrey,
+    PredatorPreyConfig,
+    PredatorPreyTrials,
+)
 
 GO = (1.0, 0.5)
 STOP = (0.0, 0.5)
@@ -335,3 +342,154 @@ def test_predators_crowding_the_prey_never_sink_into_each_other(placed) -> None:
         worst = max(worst, float(np.max(2 * r - gap[both], initial=-np.inf)))
     assert worst > -0.01  # they touched
     assert worst <= 2 * 0.05 * r
+
+
+class ArrayPredatorPrey(PredatorPrey):
+    """The task with its sensors, prey and rules as whole-array numpy: the
+    formulation the compiled loops replaced, kept as their oracle."""
+
+    def sensors(self, trials: PredatorPreyTrials, bodies: BodyState) -> np.ndarray:
+        c = self.config
+        n = c.n_predators
+        pos = bodies.position[:, :n]
+        b = pos.shape[0]
+        out = np.empty((b, n, c.n_inputs))
+        cos_h, sin_h = bodies.cos_angle[:, :n], bodies.sin_angle[:, :n]
+        scale = 2.0 / c.arena_size
+        if n > 1:
+            # Every other predator's reading, then sorted nearest first by a stable
+            # bubble sort of compare-exchanges (ties keep index order).
+            other = pos[:, self._others]
+            ox = other[..., 0] - pos[..., 0, None]
+            oy = other[..., 1] - pos[..., 1, None]
+            d = norm(ox, oy)
+            reading = np.maximum(d - 2.0 * c.predator_radius, 0.0) * scale - 1.0
+            angle = bearing(ox, oy, cos_h[..., None], sin_h[..., None]) * (1.0 / np.pi)
+            cols = [(d[..., j], reading[..., j], angle[..., j]) for j in range(n - 1)]
+            for end in range(n - 2, 0, -1):
+                for j in range(end):
+                    (da, ra, aa), (db, rb, ab) = cols[j], cols[j + 1]
+                    swap = db < da
+                    cols[j] = (
+                        np.where(swap, db, da),
+                        np.where(swap, rb, ra),
+                        np.where(swap, ab, aa),
+                    )
+                    cols[j + 1] = (
+                        np.where(swap, da, db),
+                        np.where(swap, ra, rb),
+                        np.where(swap, aa, ab),
+                    )
+            for k, (_, r, a) in enumerate(cols):
+                out[..., 2 * k] = r
+                out[..., 2 * k + 1] = a
+        px = bodies.position[:, n : n + 1, 0] - pos[..., 0]
+        py = bodies.position[:, n : n + 1, 1] - pos[..., 1]
+        edge = np.maximum(norm(px, py) - (c.predator_radius + c.prey_radius), 0.0)
+        out[..., -2] = edge * scale - 1.0
+        out[..., -1] = bearing(px, py, cos_h, sin_h) * (1.0 / np.pi)
+        return out
+
+    def actuate(
+        self, trials: PredatorPreyTrials, bodies: BodyState, outputs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        n = c.n_predators
+        b = outputs.shape[0]
+        speed = np.empty((b, n + 1))
+        turn = np.empty((b, n + 1))
+        speed[:, :n] = outputs[..., 0] * c.predator_speed
+        turn[:, :n] = (2.0 * outputs[..., 1] - 1.0) * c.max_turn
+        # The prey's flight, from the positions before the step.
+        away = bodies.position[:, n : n + 1] - bodies.position[:, :n]
+        centre = norm(away[..., 0], away[..., 1])
+        # d_i from the bodies as the first step finds them (NaN until then).
+        first = np.isnan(trials.initial_distance)
+        if first.any():
+            trials.initial_distance[first] = robot_sum(centre[first]) / n
+        edge = centre - (c.predator_radius + c.prey_radius)
+        close = (edge > 0.0) & (edge < c.flee_distance)
+        weight = np.where(close, 1.0 / np.where(close, edge * centre, 1.0), 0.0)
+        ux = robot_sum(away[..., 0] * weight)
+        uy = robot_sum(away[..., 1] * weight)
+        flees = (ux != 0.0) | (uy != 0.0)
+        speed[:, n] = np.where(flees, c.prey_speed, 0.0)
+        target = np.arctan2(uy, ux)
+        turn[:, n] = np.where(flees, wrap_angle(target - bodies.angle[:, n]), 0.0)
+        return speed, turn
+
+    def update(
+        self, trials: PredatorPreyTrials, bodies: BodyState, step: int
+    ) -> np.ndarray:
+        c = self.config
+        n, s = c.n_predators, c.arena_size
+        pos = bodies.position
+        prey = pos[:, n]
+        offset = pos[:, :n] - prey[:, None, :]
+        centre = norm(offset[..., 0], offset[..., 1])
+        captured = (centre <= c.capture_distance).any(axis=1)
+        trials.captured |= captured
+        bodies.enabled[:, n] &= ~captured
+        trials.final_distance = robot_sum(centre) / n
+        x, y = pos[:, :n, 0], pos[:, :n, 1]
+        cx = robot_sum(x) / n
+        cy = robot_sum(y) / n
+        trials.dispersion_sum += robot_sum(norm(x - cx[:, None], y - cy[:, None])) / n
+        outside = (prey < 0.0).any(axis=1) | (prey > s).any(axis=1)
+        return captured | outside
+
+
+def scattered_bodies(n: int, n_trials: int, seed: int) -> BodyState:
+    """Predators and prey on a unit grid, so that distances tie, edges touch (0)
+    and fall exactly on the flee distance (3 here) and the capture distance; a
+    few trials off the grid. Positions as a strided view of state rows, as the
+    engine passes them."""
+    rng = np.random.default_rng(seed)
+    r = n + 1
+    rows = np.zeros((n_trials, r, 5))
+    rows[..., 0:2] = rng.integers(0, 9, (n_trials, r, 2)) + 40.0
+    rows[: n_trials // 4, :, 0:2] += rng.normal(0.0, 3.0, (n_trials // 4, r, 2))
+    rows[-2:, n, 0] = (-1.0, 101.0)
+    angle = rng.uniform(-2 * math.pi, 2 * math.pi, (n_trials, r))
+    return BodyState.at_rest(rows[..., 0:2], angle)
+
+
+@pytest.mark.parametrize("n", [1, 3, 5])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_compiled_sensors_prey_and_rules_equal_the_array_formulation(
+    n: int, seed: int
+) -> None:
+    """To the bit: the predators' inputs, the prey's speed and turn, d_i, and every
+    trial array the rules write, on scattered trials (ties, touching bodies,
+    distances exactly at the flee and capture thresholds, a prey outside)."""
+    settings = {"n_predators": n, "flee_distance": 3.0}
+    task = make_task("predator_prey", **settings)
+    oracle = ArrayPredatorPrey(PredatorPreyConfig(**settings))
+    n_trials = 96
+    got_trials, _, _ = task.reset([np.random.default_rng(t) for t in range(n_trials)])
+    want_trials = copy.deepcopy(got_trials)
+    got_trials.initial_distance[: n_trials // 2] = 7.0
+    want_trials.initial_distance[: n_trials // 2] = 7.0
+    got_bodies = scattered_bodies(n, n_trials, seed)
+    want_bodies = copy.deepcopy(got_bodies)
+    outputs = np.random.default_rng(seed).uniform(0.0, 1.0, (n_trials, n, 2))
+
+    np.testing.assert_array_equal(
+        task.sensors(got_trials, got_bodies), oracle.sensors(want_trials, want_bodies)
+    )
+    for got, want in zip(
+        task.actuate(got_trials, got_bodies, outputs),
+        oracle.actuate(want_trials, want_bodies, outputs),
+        strict=True,
+    ):
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(
+        task.update(got_trials, got_bodies, 1),
+        oracle.update(want_trials, want_bodies, 1),
+    )
+    for name in ("captured", "initial_distance", "final_distance", "dispersion_sum"):
+        np.testing.assert_array_equal(
+            getattr(got_trials, name), getattr(want_trials, name)
+        )
+    np.testing.assert_array_equal(got_bodies.enabled, want_bodies.enabled)
+    assert got_trials.captured.any() and not got_trials.captured.all()

@@ -69,8 +69,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
-from sdbc_sim.sensors import bearing, norm, robot_sum, wrap_angle
+from sdbc_sim.sensors import robot_sum, wrap_angle
 from sdbc_sim.settings import PositiveFloat, PositiveInt, check, settings
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -294,43 +295,32 @@ class PredatorPrey(Task[PredatorPreyTrials]):
     def sensors(self, trials: PredatorPreyTrials, bodies: BodyState) -> np.ndarray:
         c = self.config
         n = c.n_predators
-        pos = bodies.position[:, :n]
-        b = pos.shape[0]
+        b, r = bodies.angle.shape
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle[:, :n], bodies.sin_angle[:, :n]
         scale = 2.0 / c.arena_size
-        if n > 1:
-            # Every other predator's reading, then sorted nearest first by a stable
-            # bubble sort of compare-exchanges (ties keep index order).
-            other = pos[:, self._others]
-            ox = other[..., 0] - pos[..., 0, None]
-            oy = other[..., 1] - pos[..., 1, None]
-            d = norm(ox, oy)
-            reading = np.maximum(d - 2.0 * c.predator_radius, 0.0) * scale - 1.0
-            angle = bearing(ox, oy, cos_h[..., None], sin_h[..., None]) * (1.0 / np.pi)
-            cols = [(d[..., j], reading[..., j], angle[..., j]) for j in range(n - 1)]
-            for end in range(n - 2, 0, -1):
-                for j in range(end):
-                    (da, ra, aa), (db, rb, ab) = cols[j], cols[j + 1]
-                    swap = db < da
-                    cols[j] = (
-                        np.where(swap, db, da),
-                        np.where(swap, rb, ra),
-                        np.where(swap, ab, aa),
-                    )
-                    cols[j + 1] = (
-                        np.where(swap, da, db),
-                        np.where(swap, ra, rb),
-                        np.where(swap, aa, ab),
-                    )
-            for k, (_, r, a) in enumerate(cols):
-                out[..., 2 * k] = r
-                out[..., 2 * k + 1] = a
-        px = bodies.position[:, n : n + 1, 0] - pos[..., 0]
-        py = bodies.position[:, n : n + 1, 1] - pos[..., 1]
-        edge = np.maximum(norm(px, py) - (c.predator_radius + c.prey_radius), 0.0)
-        out[..., -2] = edge * scale - 1.0
-        out[..., -1] = bearing(px, py, cos_h, sin_h) * (1.0 / np.pi)
+        dist = np.empty((b, n, r - 1))
+        left = np.empty((b, n, r - 1))
+        ahead = np.empty((b, n, r - 1))
+        _seen_by_predators(
+            np.ascontiguousarray(bodies.position),
+            np.ascontiguousarray(cos_h),
+            np.ascontiguousarray(sin_h),
+            dist,
+            left,
+            ahead,
+        )
+        # The bearings (sensors.bearing's atan2) stay in numpy: see sdbc_sim.compiled.
+        angle = np.arctan2(left, ahead)
+        angle *= 1.0 / np.pi
+        _predator_readings(
+            dist,
+            angle,
+            2.0 * c.predator_radius,
+            c.predator_radius + c.prey_radius,
+            scale,
+            out,
+        )
         return out
 
     def actuate(
@@ -344,17 +334,21 @@ class PredatorPrey(Task[PredatorPreyTrials]):
         speed[:, :n] = outputs[..., 0] * c.predator_speed
         turn[:, :n] = (2.0 * outputs[..., 1] - 1.0) * c.max_turn
         # The prey's flight, from the positions before the step.
-        away = bodies.position[:, n : n + 1] - bodies.position[:, :n]
-        centre = norm(away[..., 0], away[..., 1])
+        centre = np.empty((b, n))
+        ux = np.empty(b)
+        uy = np.empty(b)
+        _flight(
+            np.ascontiguousarray(bodies.position),
+            c.predator_radius + c.prey_radius,
+            c.flee_distance,
+            centre,
+            ux,
+            uy,
+        )
         # d_i from the bodies as the first step finds them (NaN until then).
         first = np.isnan(trials.initial_distance)
         if first.any():
             trials.initial_distance[first] = robot_sum(centre[first]) / n
-        edge = centre - (c.predator_radius + c.prey_radius)
-        close = (edge > 0.0) & (edge < c.flee_distance)
-        weight = np.where(close, 1.0 / np.where(close, edge * centre, 1.0), 0.0)
-        ux = robot_sum(away[..., 0] * weight)
-        uy = robot_sum(away[..., 1] * weight)
         flees = (ux != 0.0) | (uy != 0.0)
         speed[:, n] = np.where(flees, c.prey_speed, 0.0)
         target = np.arctan2(uy, ux)
@@ -366,18 +360,22 @@ class PredatorPrey(Task[PredatorPreyTrials]):
     ) -> np.ndarray:
         c = self.config
         n, s = c.n_predators, c.arena_size
-        pos = bodies.position
-        prey = pos[:, n]
-        offset = pos[:, :n] - prey[:, None, :]
-        centre = norm(offset[..., 0], offset[..., 1])
-        captured = (centre <= c.capture_distance).any(axis=1)
+        b = bodies.angle.shape[0]
+        captured = np.empty(b, dtype=bool)
+        final_distance = np.empty(b)
+        dispersion = np.empty(b)
+        _pursuit(
+            np.ascontiguousarray(bodies.position),
+            c.capture_distance,
+            captured,
+            final_distance,
+            dispersion,
+        )
         trials.captured |= captured
         bodies.enabled[:, n] &= ~captured
-        trials.final_distance = robot_sum(centre) / n
-        x, y = pos[:, :n, 0], pos[:, :n, 1]
-        cx = robot_sum(x) / n
-        cy = robot_sum(y) / n
-        trials.dispersion_sum += robot_sum(norm(x - cx[:, None], y - cy[:, None])) / n
+        trials.final_distance = final_distance
+        trials.dispersion_sum += dispersion
+        prey = bodies.position[:, n]
         outside = (prey < 0.0).any(axis=1) | (prey > s).any(axis=1)
         return captured | outside
 
@@ -432,3 +430,164 @@ class PredatorPrey(Task[PredatorPreyTrials]):
 
 
 TASK = PredatorPrey
+
+
+@compiled(
+    "void(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], float64[:, :, ::1], "
+    "float64[:, :, ::1], float64[:, :, ::1])"
+)
+def _seen_by_predators(
+    pos: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    dist: np.ndarray,
+    left: np.ndarray,
+    ahead: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.sensors
+    """What each predator i sees ((B, N, R - 1) outputs): the other bodies, the
+    other predators in index order and then the prey, as centre distances and
+    as offsets rotated into i's frame (the arguments of
+    :func:`~sdbc_sim.sensors.bearing`'s atan2, by its operations).
+
+    A compiled loop (:mod:`sdbc_sim.compiled`), as is :func:`_predator_readings`:
+    as whole arrays the predators' sensors made some forty numpy calls on
+    (B, N) arrays per step; the readings are the array formulation's to the bit
+    (``tests/sdbc_sim/tasks/test_predator_prey.py``).
+    """
+    n = cos_h.shape[1]
+    for t in range(pos.shape[0]):
+        for i in range(n):
+            px = pos[t, i, 0]
+            py = pos[t, i, 1]
+            c = cos_h[t, i]
+            s = sin_h[t, i]
+            col = 0
+            for j in range(pos.shape[1]):
+                if j == i:
+                    continue
+                dx = pos[t, j, 0] - px
+                dy = pos[t, j, 1] - py
+                dist[t, i, col] = np.sqrt(dx * dx + dy * dy)
+                left[t, i, col] = dy * c - dx * s
+                ahead[t, i, col] = dx * c + dy * s
+                col += 1
+
+
+@compiled(
+    "void(float64[:, :, ::1], float64[:, :, ::1], float64, float64, float64, "
+    "float64[:, :, ::1])"
+)
+def _predator_readings(
+    dist: np.ndarray,
+    angle: np.ndarray,
+    predator_gap: float,
+    prey_gap: float,
+    scale: float,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.sensors
+    """The predators' inputs from :func:`_seen_by_predators`' distances and the
+    bearings / pi: the other predators' edge readings and bearings, nearest
+    first (a bubble sort of compare-exchanges that swaps only a strictly nearer
+    one, so ties keep index order), then the prey's."""
+    m = dist.shape[2] - 1
+    d = np.empty(m)
+    r = np.empty(m)
+    a = np.empty(m)
+    for t in range(dist.shape[0]):
+        for i in range(dist.shape[1]):
+            for k in range(m):
+                d[k] = dist[t, i, k]
+                r[k] = max(d[k] - predator_gap, 0.0) * scale - 1.0
+                a[k] = angle[t, i, k]
+            for end in range(m - 1, 0, -1):
+                for j in range(end):
+                    if d[j + 1] < d[j]:
+                        d[j], d[j + 1] = d[j + 1], d[j]
+                        r[j], r[j + 1] = r[j + 1], r[j]
+                        a[j], a[j + 1] = a[j + 1], a[j]
+            for k in range(m):
+                out[t, i, 2 * k] = r[k]
+                out[t, i, 2 * k + 1] = a[k]
+            out[t, i, 2 * m] = max(dist[t, i, m] - prey_gap, 0.0) * scale - 1.0
+            out[t, i, 2 * m + 1] = angle[t, i, m]
+
+
+@compiled(
+    "void(float64[:, :, ::1], float64, float64, float64[:, ::1], float64[::1], "
+    "float64[::1])"
+)
+def _flight(
+    pos: np.ndarray,
+    contact: float,
+    flee_distance: float,
+    centre: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.actuate
+    """The prey's push u = sum_i (p_prey - p_i) / (|p_prey - p_i| d_i) over the
+    predators whose edge distance d_i lies in (0, ``flee_distance``), summed in
+    predator order from the first term; and the centre distances (B, N)."""
+    n = centre.shape[1]
+    for t in range(pos.shape[0]):
+        sx = 0.0
+        sy = 0.0
+        for i in range(n):
+            ax = pos[t, n, 0] - pos[t, i, 0]
+            ay = pos[t, n, 1] - pos[t, i, 1]
+            c = np.sqrt(ax * ax + ay * ay)
+            centre[t, i] = c
+            edge = c - contact
+            w = 1.0 / (edge * c) if edge > 0.0 and edge < flee_distance else 0.0
+            if i == 0:
+                sx = ax * w
+                sy = ay * w
+            else:
+                sx += ax * w
+                sy += ay * w
+        ux[t] = sx
+        uy[t] = sy
+
+
+@compiled("void(float64[:, :, ::1], float64, boolean[::1], float64[::1], float64[::1])")
+def _pursuit(
+    pos: np.ndarray,
+    capture_distance: float,
+    captured: np.ndarray,
+    final_distance: np.ndarray,
+    dispersion: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.update
+    """Per trial after a step: is a predator centre within ``capture_distance``
+    of the prey's, the predators' mean centre distance to the prey, and their
+    mean distance to their centroid; sums in predator order from the first term."""
+    n = pos.shape[1] - 1
+    for t in range(pos.shape[0]):
+        qx = pos[t, n, 0]
+        qy = pos[t, n, 1]
+        caught = False
+        total = 0.0
+        cx = 0.0
+        cy = 0.0
+        for i in range(n):
+            ox = pos[t, i, 0] - qx
+            oy = pos[t, i, 1] - qy
+            c = np.sqrt(ox * ox + oy * oy)
+            caught = caught or c <= capture_distance
+            if i == 0:
+                total = c
+                cx = pos[t, i, 0]
+                cy = pos[t, i, 1]
+            else:
+                total += c
+                cx += pos[t, i, 0]
+                cy += pos[t, i, 1]
+        cx = cx / n
+        cy = cy / n
+        spread = 0.0
+        for i in range(n):
+            dx = pos[t, i, 0] - cx
+            dy = pos[t, i, 1] - cy
+            e = np.sqrt(dx * dx + dy * dy)
+            spread = e if i == 0 else spread + e
+        captured[t] = caught
+        final_distance[t] = total / n
+        dispersion[t] = spread / n
