@@ -149,8 +149,39 @@ def sector_minimum(
         (n_rows, n_arcs) minimum reading per robot and sector.
     """
     out = np.full((n_rows, n_arcs), empty)
-    np.minimum.at(out, (rows, arc_index(bearings, n_arcs)), readings)
+    width = TWO_PI / n_arcs
+    _sector_minimum(
+        np.ascontiguousarray(rows, dtype=np.intp),
+        np.ascontiguousarray(bearings, dtype=np.float64),
+        np.ascontiguousarray(readings, dtype=np.float64),
+        np.pi + 0.5 * width,
+        1.0 / width,
+        out,
+    )
     return out
+
+
+@compiled(
+    "void(intp[::1], float64[::1], float64[::1], float64, float64, float64[:, ::1])"
+)
+def _sector_minimum(
+    rows: np.ndarray,
+    bearings: np.ndarray,
+    readings: np.ndarray,
+    shift: float,
+    per_width: float,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through sector_minimum
+    """``out[row, arc] = min(out[row, arc], reading)`` per sensed object, the arc
+    as :func:`arc_index` computes it (``shift`` = pi + width / 2, ``per_width`` =
+    1 / width); a minimum does not depend on the order it is taken in."""
+    n_arcs = out.shape[1]
+    for k in range(rows.shape[0]):
+        arc = int((bearings[k] + shift) * per_width)
+        if arc >= n_arcs:
+            arc -= n_arcs
+        if readings[k] < out[rows[k], arc]:
+            out[rows[k], arc] = readings[k]
 
 
 def ray_segment_distance(
@@ -277,19 +308,81 @@ def neighbour_sectors(
         (B, N, N) bool of who senses whom.
     """
     b, n = cos_h.shape
-    dx, dy, dist = pairwise_offsets(pos)
-    edge = dist - 2.0 * robot_radius
-    sensed = (edge <= sensor_range) & visible
-    pairs = np.flatnonzero(sensed)
-    rows = pairs // n
-    readings = np.maximum(
-        normalised_reading(edge.reshape(-1)[pairs], sensor_range), -1.0
+    sensed = np.empty((b, n, n), dtype=np.bool_)
+    most = b * n * n
+    rows = np.empty(most, dtype=np.intp)
+    left = np.empty(most)
+    ahead = np.empty(most)
+    readings = np.empty(most)
+    k = _sensed_pairs(
+        np.ascontiguousarray(pos, dtype=np.float64),
+        np.ascontiguousarray(cos_h, dtype=np.float64),
+        np.ascontiguousarray(sin_h, dtype=np.float64),
+        np.ascontiguousarray(visible, dtype=np.bool_).reshape(-1, n, n),
+        2.0 * robot_radius,
+        sensor_range,
+        2.0 / sensor_range,
+        sensed,
+        rows,
+        left,
+        ahead,
+        readings,
     )
-    bearings = bearing(
-        dx.reshape(-1)[pairs],
-        dy.reshape(-1)[pairs],
-        cos_h.reshape(-1)[rows],
-        sin_h.reshape(-1)[rows],
-    )
-    sectors = sector_minimum(rows, bearings, readings, b * n, n_sectors)
+    # bearing()'s atan2 stays in numpy (sdbc_sim.compiled), over the sensed pairs.
+    bearings = np.arctan2(left[:k], ahead[:k])
+    sectors = sector_minimum(rows[:k], bearings, readings[:k], b * n, n_sectors)
     return sectors.reshape(b, n, n_sectors), sensed
+
+
+@compiled(
+    "intp(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], boolean[:, :, ::1], "
+    "float64, float64, float64, boolean[:, :, ::1], intp[::1], float64[::1], "
+    "float64[::1], float64[::1])"
+)
+def _sensed_pairs(
+    pos: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    visible: np.ndarray,
+    gap: float,
+    sensor_range: float,
+    scale: float,
+    sensed: np.ndarray,
+    rows: np.ndarray,
+    left: np.ndarray,
+    ahead: np.ndarray,
+    readings: np.ndarray,
+) -> int:  # pragma: no cover - compiled; tested through neighbour_sectors
+    """Who senses whom ((B, N, N) ``sensed``) and, for the K sensed pairs in
+    row-major order, the sensing robot's flat row, the offset rotated into its
+    frame (:func:`bearing`'s atan2 arguments) and the reading; returns K.
+
+    A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays this made
+    (B, N, N) offsets, distances and masks and gathered them at every step; the
+    operations are the array formulation's, in its order
+    (``tests/sdbc_sim/test_sensors.py``)."""
+    n = cos_h.shape[1]
+    shared = visible.shape[0] == 1
+    k = 0
+    for t in range(pos.shape[0]):
+        v = 0 if shared else t
+        for i in range(n):
+            xi = pos[t, i, 0]
+            yi = pos[t, i, 1]
+            c = cos_h[t, i]
+            s = sin_h[t, i]
+            for j in range(n):
+                dx = pos[t, j, 0] - xi
+                dy = pos[t, j, 1] - yi
+                edge = np.sqrt(dx * dx + dy * dy) - gap
+                seen = edge <= sensor_range and visible[v, i, j]
+                sensed[t, i, j] = seen
+                if not seen:
+                    continue
+                reading = min(edge * scale - 1.0, 1.0)
+                rows[k] = t * n + i
+                left[k] = dy * c - dx * s
+                ahead[k] = dx * c + dy * s
+                readings[k] = max(reading, -1.0)
+                k += 1
+    return k
