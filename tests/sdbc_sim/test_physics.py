@@ -5,10 +5,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pymunk.batch as pb
 import pytest
 from sdbc_sim.engine import BatchSimulation, EngineSettings, TrialStepper
-from sdbc_sim.physics import PhysicsSettings, SlotGrid
+from sdbc_sim.physics import PhysicsSettings, SlotGrid, TrialSpaces
 from sdbc_sim.sensors import point_segment_distance
+from sdbc_sim.separation import project_apart
 from sdbc_sim.tasks import make_task
 
 
@@ -171,3 +173,85 @@ def test_pymunk_buffers_are_reused_batch_after_batch(
         gc.collect()
         counts.append(len(made))
     assert counts[2:] == [counts[2]] * 6, counts
+
+
+def array_separate(spaces: TrialSpaces, out: np.ndarray, enabled: np.ndarray) -> None:
+    """TrialSpaces.separate as whole-array numpy (deep contacts mapped to rows by
+    searchsorted, the trials by np.unique, the moved centres by fancy indexing):
+    the formulation the compiled loops replaced, kept as their oracle."""
+    n = spaces.n_bodies
+    tol = spaces._tolerance
+    found = []
+    for sp, rows in spaces._ranges:
+        buf = pb.Buffer()
+        fields = pb.ArbiterFields
+        which = fields.BODY_A_ID | fields.BODY_B_ID | fields.CONTACT_COUNT
+        pb.get_space_arbiters(sp.space, which | fields.DISTANCE_1, buf)
+        ints = np.frombuffer(buf.int_buf(), dtype=np.uintp).reshape(-1, 3)
+        depth = -np.frombuffer(buf.float_buf(), dtype=np.float64)
+        ids = ints[(ints[:, 2] > 0) & (depth > tol), :2].ravel()
+        at = np.minimum(np.searchsorted(sp.sorted_ids, ids), len(sp.sorted_ids) - 1)
+        deep = np.where(sp.sorted_ids[at] == ids, sp.sorted_rows[at], -1)
+        found.append((rows.start + deep[deep >= 0]) // n)
+    trials = np.unique(np.concatenate(found))
+    pos = out[:, 0:2].reshape(-1, n, 2)[trials]
+    new = project_apart(
+        pos,
+        enabled[trials],
+        spaces._radii,
+        spaces._walls,
+        tol,
+        spaces.settings.separation_iterations,
+    )
+    t, i = np.nonzero(np.any(new != pos, axis=-1))
+    rows = trials[t] * n + i
+    out[rows, 0:2] = (new[t, i] + spaces._offsets[rows]) - spaces._offsets[rows]
+    for sp, span in spaces._ranges:
+        if np.any((rows >= span.start) & (rows < span.stop)):
+            sp.moved = True
+
+
+@pytest.mark.parametrize("per_space", [3, 500])
+def test_the_compiled_separation_equals_the_array_formulation(per_space: int) -> None:
+    """To the bit, and the same Spaces marked for a position write: a step that
+    drives gate-escape robots, started in a heap and against the walls, into each
+    other and into the walls at full speed (most trials overlap; in six, robots
+    far apart do not), and two still trials whose overlap is just above and just
+    below the tolerance."""
+    task = make_task("gate_escape")
+    rng = np.random.default_rng(per_space)
+    b, r = 40, task.layout.n_bodies
+    position = rng.uniform(2.0, 14.0, (b, r, 2))
+    position[::7] += 60.0
+    # The first two Spaces of three trials: robots far from everything.
+    position[:6] = 50.0 + 20.0 * np.arange(r)[:, None]
+    # Standing still, two robots that overlap by a little more and a little less
+    # than the tolerance (0.02 of the radius 2.5).
+    position[6:8] = 50.0 + 20.0 * np.arange(r)[:, None]
+    position[6, 1] = position[6, 0] + (5.0 - 0.06, 0.0)
+    position[7, 1] = position[7, 0] + (5.0 - 0.04, 0.0)
+    angle = rng.uniform(-math.pi, math.pi, (b, r))
+    settings = PhysicsSettings(trials_per_space=per_space)
+    results = []
+    for separate in (TrialSpaces.separate, array_separate):
+        spaces = TrialSpaces.of_task(task, position, angle, settings)
+        state = np.empty((b * r, 5))
+        spaces.read(state)
+        drive = np.zeros((b * r, 4))
+        cols = spaces.drive_columns
+        drive[:, cols.angle] = state[:, 2]
+        drive[:, cols.x] = -np.cos(state[:, 2])
+        drive[:, cols.y] = -1.0
+        drive[6 * r : 8 * r, cols.x :] = 0.0
+        spaces.step(drive, state)
+        enabled = np.ones((b, r), dtype=bool)
+        enabled[1] = False
+        before = state.copy()
+        separate(spaces, state, enabled)
+        results.append((state, [sp.moved for sp in spaces.spaces]))
+    (got, got_moved), (want, want_moved) = results
+    np.testing.assert_array_equal(got, want)
+    assert got_moved == want_moved
+    assert any(want_moved) and (per_space == 500 or not all(want_moved))
+    assert not np.array_equal(got[6 * r : 7 * r], before[6 * r : 7 * r])
+    np.testing.assert_array_equal(got[7 * r : 8 * r], before[7 * r : 8 * r])

@@ -343,23 +343,85 @@ class _Space:
         perm[[row_of[i] for i in in_space]] = np.arange(len(in_space))
         self.perm = None if np.array_equal(perm, np.arange(len(in_space))) else perm
 
-    def rows_of(self, ids: np.ndarray) -> np.ndarray:
-        """Rows of bodies given their ids; -1 for a static body."""
-        at = np.searchsorted(self.sorted_ids, ids)
-        at = np.minimum(at, self.sorted_ids.shape[0] - 1)
-        return np.where(self.sorted_ids[at] == ids, self.sorted_rows[at], -1)
-
-    def deep_contacts(self, tolerance: float) -> np.ndarray:
-        """Rows (of this Space) of the bodies in a contact of the last step that
-        overlaps by more than ``tolerance``."""
+    def mark_deep(
+        self, tolerance: float, first_row: int, n_bodies: int, deep: np.ndarray
+    ) -> None:
+        """Sets ``deep`` (live trials, bool) of every trial with a contact of the
+        last step that overlaps by more than ``tolerance``; this Space's rows
+        start at engine row ``first_row``."""
         buf = self.contact_buf
         buf.clear()
         pb.get_space_arbiters(self.space, _CONTACT_IDS | _CONTACT_DEPTH, buf)
-        ints = np.frombuffer(buf.int_buf(), dtype=np.uintp).reshape(-1, 3)
-        depth = -np.frombuffer(buf.float_buf(), dtype=np.float64)
-        deep = (ints[:, 2] > 0) & (depth > tolerance)
-        rows = self.rows_of(ints[deep, :2].ravel())
-        return rows[rows >= 0]
+        _mark_deep_trials(
+            np.frombuffer(buf.int_buf(), dtype=np.uintp).reshape(-1, 3),
+            np.frombuffer(buf.float_buf(), dtype=np.float64),
+            self.sorted_ids,
+            self.sorted_rows,
+            tolerance,
+            first_row,
+            n_bodies,
+            deep,
+        )
+
+
+@compiled.compiled(
+    "void(uintp[:, ::1], float64[::1], uintp[::1], intp[::1], float64, intp, intp, "
+    "boolean[::1])"
+)
+def _mark_deep_trials(
+    contacts: np.ndarray,
+    distance: np.ndarray,
+    sorted_ids: np.ndarray,
+    sorted_rows: np.ndarray,
+    tolerance: float,
+    first_row: int,
+    n_bodies: int,
+    deep: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through TrialSpaces.separate
+    """For each arbiter (body ids a and b, contact count; its first contact's
+    distance, negative when overlapping) with a contact deeper than
+    ``tolerance``, marks the trials of its dynamic bodies (a static body's id is
+    not among ``sorted_ids``, which map a body's id to its row).
+
+    A compiled loop (:mod:`sdbc_sim.compiled`): it ran at almost every step as a
+    dozen whole-array calls per Space."""
+    n = sorted_ids.shape[0]
+    for k in range(contacts.shape[0]):
+        if contacts[k, 2] == 0 or not -distance[k] > tolerance:
+            continue
+        for side in range(2):
+            body = contacts[k, side]
+            at = np.searchsorted(sorted_ids, body)
+            if at < n and sorted_ids[at] == body:
+                deep[(first_row + sorted_rows[at]) // n_bodies] = True
+
+
+@compiled.compiled(
+    "void(float64[:, ::1], intp[::1], float64[:, :, ::1], float64[:, :, ::1], "
+    "float64[:, ::1], boolean[::1])"
+)
+def _write_projection(
+    out: np.ndarray,
+    trials: np.ndarray,
+    before: np.ndarray,
+    after: np.ndarray,
+    offsets: np.ndarray,
+    moved: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through TrialSpaces.separate
+    """Writes the centres of ``trials`` that the projection moved (``after``
+    differs from ``before``) into the state rows ``out``, rounded as pymunk will
+    hold them (to world coordinates and back: exact, as every world coordinate
+    has the same exponent), and marks their rows in ``moved``."""
+    n = after.shape[1]
+    for s in range(trials.shape[0]):
+        for i in range(n):
+            x = after[s, i, 0]
+            y = after[s, i, 1]
+            if x != before[s, i, 0] or y != before[s, i, 1]:
+                row = trials[s] * n + i
+                out[row, 0] = (x + offsets[row, 0]) - offsets[row, 0]
+                out[row, 1] = (y + offsets[row, 1]) - offsets[row, 1]
+                moved[row] = True
 
 
 class TrialSpaces:
@@ -557,15 +619,13 @@ class TrialSpaces:
             anchored: (n_live, R) bool, anchored bodies (see :meth:`anchor`).
         """
         tol = self._tolerance
-        found = []
-        for sp, rows in self._ranges:
-            deep = sp.deep_contacts(tol)
-            if deep.size:
-                found.append((rows.start + deep) // self.n_bodies)
-        if not found:
-            return
-        trials = np.unique(np.concatenate(found))
         n = self.n_bodies
+        deep = np.zeros(self.live.shape[0], dtype=np.bool_)
+        for sp, rows in self._ranges:
+            sp.mark_deep(tol, rows.start, n, deep)
+        if not deep.any():
+            return
+        trials = np.flatnonzero(deep)
         pos = out[:, 0:2].reshape(-1, n, 2)[trials]
         new = project_apart(
             pos,
@@ -576,15 +636,12 @@ class TrialSpaces:
             self.settings.separation_iterations,
             None if anchored is None or not anchored.any() else anchored[trials],
         )
-        t, i = np.nonzero(np.any(new != pos, axis=-1))
-        rows = trials[t] * n + i
         # What pymunk will hold: the next step writes every position of the
-        # Spaces that hold a moved body from ``out``, in bulk. Rounded as there,
-        # to world coordinates and back (exact: every world coordinate has the
-        # same exponent).
-        out[rows, 0:2] = (new[t, i] + self._offsets[rows]) - self._offsets[rows]
+        # Spaces that hold a moved body from ``out``, in bulk.
+        moved = np.zeros(out.shape[0], dtype=np.bool_)
+        _write_projection(out, trials, pos, new, self._offsets, moved)
         for sp, span in self._ranges:
-            if np.any((rows >= span.start) & (rows < span.stop)):
+            if moved[span].any():
                 sp.moved = True
 
     @property
