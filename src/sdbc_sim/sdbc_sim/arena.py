@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from sdbc_sim.sensors import TWO_PI, normalised_reading, ray_segment_distance
+from sdbc_sim.compiled import compiled
+from sdbc_sim.sensors import TWO_PI, ray_distance
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState
 
 MAX_START_DRAWS = 100_000
@@ -80,33 +81,73 @@ class WallRays:
         angles = -arc / 2.0 + arc * np.arange(n_rays)
         self._cos = np.cos(angles)
         self._sin = np.sin(angles)
+        self._walls = np.ascontiguousarray(walls, dtype=np.float64).reshape(-1, 2, 2)
 
     def read(
         self, pos: np.ndarray, cos_heading: np.ndarray, sin_heading: np.ndarray
     ) -> np.ndarray:
         """(B, N, n_rays) readings of robots at ``pos`` (B, N, 2) with headings of
         cosine and sine (B, N)."""
-        n_rays, r = self.n_rays, self.robot_radius
-        reach = r + self.ray_range
+        reach = self.robot_radius + self.ray_range
         x0, y0, x1, y1 = self.box
-        out = np.ones((*cos_heading.shape, n_rays))
-        x, y = pos[..., 0], pos[..., 1]
-        near = np.flatnonzero(
-            (x < x0 + reach) | (x > x1 - reach) | (y < y0 + reach) | (y > y1 - reach)
+        out = np.empty((*cos_heading.shape, self.n_rays))
+        _wall_ray_readings(
+            np.ascontiguousarray(pos, dtype=np.float64).reshape(-1, 2),
+            np.ascontiguousarray(cos_heading, dtype=np.float64).reshape(-1),
+            np.ascontiguousarray(sin_heading, dtype=np.float64).reshape(-1),
+            self._cos,
+            self._sin,
+            self.robot_radius,
+            self.ray_range,
+            2.0 / self.ray_range,
+            np.array([x0 + reach, y0 + reach, x1 - reach, y1 - reach]),
+            self._walls,
+            out.reshape(-1, self.n_rays),
         )
-        if near.size == 0:
-            return out
-        p = pos.reshape(-1, 2)[near]
-        cos_h = cos_heading.reshape(-1, 1)[near]
-        sin_h = sin_heading.reshape(-1, 1)[near]
-        ux = cos_h * self._cos - sin_h * self._sin
-        uy = sin_h * self._cos + cos_h * self._sin
-        u = np.stack([ux, uy], axis=-1).reshape(-1, 2)
-        origin = np.repeat(p, n_rays, axis=0) + r * u
-        d = ray_segment_distance(origin, u, self.ray_range, self.walls)
-        reading = np.where(np.isfinite(d), normalised_reading(d, self.ray_range), 1.0)
-        out.reshape(-1, n_rays)[near] = reading.reshape(-1, n_rays)
         return out
+
+
+@compiled(
+    "void(float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], "
+    "float64, float64, float64, float64[::1], float64[:, :, ::1], float64[:, ::1])",
+    calls=(ray_distance,),
+)
+def _wall_ray_readings(
+    pos: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    ray_cos: np.ndarray,
+    ray_sin: np.ndarray,
+    radius: float,
+    ray_range: float,
+    scale: float,
+    inner: np.ndarray,
+    walls: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through WallRays.read
+    """Every robot's ray readings ((rows, n_rays) ``out``): 1 for a robot inside
+    ``inner`` (x_low, y_low, x_high, y_high; no ray reaches the border from
+    there), else per ray the reading of :func:`~sdbc_sim.sensors.ray_distance`
+    from the robot's edge.
+
+    A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays the rays of the
+    robots near a wall were gathered, rotated, stacked and scattered back at
+    every step; the loop does the array formulation's operations in its order
+    (``tests/sdbc_sim/test_arena.py``)."""
+    for m in range(pos.shape[0]):
+        x = pos[m, 0]
+        y = pos[m, 1]
+        c = cos_h[m]
+        s = sin_h[m]
+        near = x < inner[0] or x > inner[2] or y < inner[1] or y > inner[3]
+        for k in range(ray_cos.shape[0]):
+            if not near:
+                out[m, k] = 1.0
+                continue
+            ux = c * ray_cos[k] - s * ray_sin[k]
+            uy = s * ray_cos[k] + c * ray_sin[k]
+            d = ray_distance(x + radius * ux, y + radius * uy, ux, uy, ray_range, walls)
+            out[m, k] = min(d * scale - 1.0, 1.0) if np.isfinite(d) else 1.0
 
 
 def speed_and_turn(

@@ -201,11 +201,13 @@ def ray_segment_distance(
     )
 
 
-@compiled("float64[::1](float64[:, ::1], float64[:, ::1], float64, float64[:, :, ::1])")
-def _ray_segment_distance(
-    origins: np.ndarray, directions: np.ndarray, length: float, segments: np.ndarray
-) -> np.ndarray:  # pragma: no cover - compiled; tested through ray_segment_distance
-    nearest = np.full(origins.shape[0], np.inf)
+def ray_distance(
+    ox: float, oy: float, ux: float, uy: float, length: float, segments: np.ndarray
+) -> float:  # pragma: no cover - compiled into the loops that call it
+    """:func:`ray_segment_distance` for one ray from (ox, oy) along (ux, uy): the
+    distance of its nearest hit, inf if none (a minimum: the segments' order does
+    not matter). Compiled into the loops that call it."""
+    nearest = np.inf
     for q in range(segments.shape[0]):
         ax = segments[q, 0, 0]
         ay = segments[q, 0, 1]
@@ -215,22 +217,37 @@ def _ray_segment_distance(
         x_high = max(ax, bx) + length
         y_low = min(ay, by) - length
         y_high = max(ay, by) + length
+        if not (ox >= x_low and ox <= x_high and oy >= y_low and oy <= y_high):
+            continue
         ex = bx - ax
         ey = by - ay
-        for m in range(origins.shape[0]):
-            ox = origins[m, 0]
-            oy = origins[m, 1]
-            if not (ox >= x_low and ox <= x_high and oy >= y_low and oy <= y_high):
-                continue
-            ux = directions[m, 0]
-            uy = directions[m, 1]
-            wx = ax - ox
-            wy = ay - oy
-            denom = ux * ey - uy * ex
-            t = (wx * ey - wy * ex) / denom
-            s = (wx * uy - wy * ux) / denom
-            if t >= 0.0 and t <= length and s >= 0.0 and s <= 1.0 and t < nearest[m]:
-                nearest[m] = t
+        wx = ax - ox
+        wy = ay - oy
+        denom = ux * ey - uy * ex
+        t = (wx * ey - wy * ex) / denom
+        s = (wx * uy - wy * ux) / denom
+        if t >= 0.0 and t <= length and s >= 0.0 and s <= 1.0 and t < nearest:
+            nearest = t
+    return nearest
+
+
+@compiled(
+    "float64[::1](float64[:, ::1], float64[:, ::1], float64, float64[:, :, ::1])",
+    calls=(ray_distance,),
+)
+def _ray_segment_distance(
+    origins: np.ndarray, directions: np.ndarray, length: float, segments: np.ndarray
+) -> np.ndarray:  # pragma: no cover - compiled; tested through ray_segment_distance
+    nearest = np.empty(origins.shape[0])
+    for m in range(origins.shape[0]):
+        nearest[m] = ray_distance(
+            origins[m, 0],
+            origins[m, 1],
+            directions[m, 0],
+            directions[m, 1],
+            length,
+            segments,
+        )
     return nearest
 
 
