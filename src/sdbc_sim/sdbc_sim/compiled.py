@@ -1,16 +1,18 @@
 """Loops compiled by numba, loaded when the physics is first set up.
 
-The engine compiles a few small loops whose whole-array numpy form paid a call's
-overhead on many tiny arrays at every step (the overlap projection, the wall
-rays). Importing numba costs about 0.5 s of CPU and loading compiled code from
-its cache 0.7 s more, so nothing is loaded at import: :func:`load` loads every
-loop when the first batch of trials is set up (``TrialSpaces``), and a loop
-called before that loads itself. A process that never steps the physics (a
-controller node, a command-line tool) never pays it, and one that does pays it
-at a known point rather than at whichever step first needs a loop.
+The engine compiles the loops whose whole-array numpy form paid a call's
+overhead on many small arrays at every step (the overlap projection and its
+bookkeeping, the wall rays, the robot arcs, the network's sums, some tasks'
+sensors and rules, the SDBC's features). Importing numba costs about 0.5 s of
+CPU and loading compiled code from its cache 0.7 s more, so nothing is loaded at
+import: :func:`load` loads every loop when the first batch of trials is set up
+(``TrialSpaces``), and a loop called before that loads itself. A process that
+never steps the physics (a controller node, a command-line tool) never pays it,
+and one that does pays it at a known point rather than at whichever step first
+needs a loop.
 
-Every loop has one signature (its callers pass contiguous float64 and bool
-arrays) and is compiled without fast-math: its additions, multiplications,
+Every loop has one signature (its callers pass contiguous arrays of the types it
+names) and is compiled without fast-math: its additions, multiplications,
 divisions, square roots and comparisons are the IEEE operations numpy does, and
 each loop does them in the order of the array formulation it replaces, so its
 results are the same to the bit (each module's tests keep that formulation as
@@ -77,8 +79,8 @@ def compiled(
 ) -> Callable[[F], F]:
     """Marks ``fn`` as a loop compiled by numba with ``signature`` (nopython,
     cached on disk, numpy's error model), loaded by :func:`load`. ``calls`` are
-    plain functions of the loop's module that the loop calls: they are compiled
-    with it (for the types it passes), so that two loops can share one."""
+    plain functions (of any module) that the loop calls by name: they are
+    compiled with it, for the types it passes, so that loops can share one."""
 
     def mark(fn: F) -> F:
         loop = _Loop(fn, signature, calls)
