@@ -77,6 +77,22 @@ def normalised_reading(d: np.ndarray, sensor_range: float) -> np.ndarray:
     return np.minimum(r, 1.0, out=r)
 
 
+def pairwise_offsets(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Offsets and centre distances between the robots of each trial.
+
+    Args:
+        pos: (B, N, 2) centres.
+
+    Returns:
+        dx, dy, dist: (B, N, N) each, entry [b, i, j] from robot i to robot j.
+    """
+    x = np.ascontiguousarray(pos[..., 0])
+    y = np.ascontiguousarray(pos[..., 1])
+    dx = x[:, None, :] - x[:, :, None]
+    dy = y[:, None, :] - y[:, :, None]
+    return dx, dy, norm(dx, dy)
+
+
 def arc_index(bearings: np.ndarray, n_arcs: int) -> np.ndarray:
     """Which of ``n_arcs`` equal sectors holds each bearing in [-pi, pi].
 
