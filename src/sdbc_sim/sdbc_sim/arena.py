@@ -72,7 +72,8 @@ class WallRays:
         ray_range: float,
         robot_radius: float,
     ) -> None:
-        self.walls = walls
+        # One contiguous (P, 2, 2) float64 copy, the layout the compiled loop takes.
+        self.walls = np.ascontiguousarray(walls, dtype=np.float64).reshape(-1, 2, 2)
         self.box = box
         self.n_rays = n_rays
         self.ray_range = ray_range
@@ -81,7 +82,6 @@ class WallRays:
         angles = -arc / 2.0 + arc * np.arange(n_rays)
         self._cos = np.cos(angles)
         self._sin = np.sin(angles)
-        self._walls = np.ascontiguousarray(walls, dtype=np.float64).reshape(-1, 2, 2)
 
     def read(
         self, pos: np.ndarray, cos_heading: np.ndarray, sin_heading: np.ndarray
@@ -101,7 +101,7 @@ class WallRays:
             self.ray_range,
             2.0 / self.ray_range,
             np.array([x0 + reach, y0 + reach, x1 - reach, y1 - reach]),
-            self._walls,
+            self.walls,
             out.reshape(-1, self.n_rays),
         )
         return out

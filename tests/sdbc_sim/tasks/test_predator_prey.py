@@ -359,7 +359,8 @@ class ArrayPredatorPrey(PredatorPrey):
         if n > 1:
             # Every other predator's reading, then sorted nearest first by a stable
             # bubble sort of compare-exchanges (ties keep index order).
-            other = pos[:, self._others]
+            others = [[j for j in range(n) if j != i] for i in range(n)]
+            other = pos[:, np.array(others, dtype=np.intp)]
             ox = other[..., 0] - pos[..., 0, None]
             oy = other[..., 1] - pos[..., 1, None]
             d = norm(ox, oy)

@@ -261,9 +261,6 @@ class PredatorPrey(Task[PredatorPreyTrials]):
                 ),
             ),
         )
-        self._others = np.array(
-            [[j for j in range(n) if j != i] for i in range(n)], dtype=np.intp
-        ).reshape(n, n - 1)
         self._predator_present = np.ones((1, n), dtype=bool)
         self._predator_radii = np.full((1, n), c.predator_radius)
         self._prey_radii = np.full((1, 1), c.prey_radius)
