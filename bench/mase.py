@@ -18,14 +18,19 @@ fd13449, this benchmark
    systematic evaluator, as in the paper's runs. Each JVM is warmed up with one
    batch first, as a generation of an evolution run finds it;
 4. interleaves, ``--alternations`` times, one batch of ``--genomes`` random genomes
-   x ``--trials`` trials of each: MASE bare, MASE with SDBC, our engine bare
-   (:func:`sdbc_sim.run_batch`) and our engine with the SDBC extractor (the
-   evolution's path), all on one core (this process and the JVMs it starts are
-   pinned to it, as ``taskset -c CORE`` would), the order reversed on every other
-   alternation;
+   x ``--trials`` trials of each: MASE bare, MASE with SDBC, and for each of our
+   physics models (``--model``; by default both, ``rigid`` and ``kinematic``, see
+   ``PhysicsSettings.model``) our engine bare (:func:`sdbc_sim.run_batch`) and
+   with the SDBC extractor (the evolution's path), all on one core (this process
+   and the JVMs it starts are pinned to it, as ``taskset -c CORE`` would), the
+   order reversed on every other alternation;
 5. prints, per task, medians over the alternations of robot-steps per CPU-second
    (each process's own CPU time, the JVM's JIT and GC threads included) and per
-   wall-second, and the medians of the per-alternation ratios sdbc / MASE.
+   wall-second, and per model the medians of the per-alternation ratios
+   ours / MASE, bare and with the SDBC.
+
+MASE's robots are kinematic, as ``kinematic`` models them; ``rigid`` (our default)
+puts every contact through pymunk's solver.
 
 Robot-steps count every body of every trial for every step it took, as
 ``bench/engine.py`` counts them: our task's bodies per trial (gate escape 4
@@ -37,7 +42,8 @@ not include. The machine should otherwise be idle; on a shared one only the rati
 of one run mean anything.
 
 Run: ``scripts/sdbc bench mase --mase PATH`` (options: ``--alternations``,
-``--genomes``, ``--trials``, ``--task``, ``--core``, ``--seed``, ``--json``).
+``--genomes``, ``--trials``, ``--task``, ``--model``, ``--core``, ``--seed``,
+``--json``).
 """
 
 from __future__ import annotations
@@ -56,7 +62,8 @@ from pathlib import Path
 import numpy as np
 from common import pin_to_core, random_batch
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
-from sdbc_sim.engine import run_batch
+from sdbc_sim.engine import EngineSettings, run_batch
+from sdbc_sim.physics import MODELS, PhysicsSettings
 from sdbc_sim.tasks import make_task
 
 COMMIT = "fd13449bab51d23cfa28bd1cfc2f202a5edd5aa6"
@@ -85,9 +92,9 @@ SOURCES = (
 )
 """The classes the parameter files name (loaded by reflection, so javac must be
 given them); javac compiles what they reference from src/."""
-CONFIGS = ("mase", "mase+sdbc", "sdbc", "sdbc+sdbc")
-"""MASE bare, MASE with its SystematicEvaluator, our engine bare, our engine with
-the SDBC extractor."""
+MASE_CONFIGS = ("mase", "mase+sdbc")
+"""MASE bare and with its SystematicEvaluator; ours are each physics model bare
+(its name) and with the SDBC extractor (its name + "+sdbc")."""
 
 
 def check_checkout(mase: Path) -> None:
@@ -247,16 +254,28 @@ class Series:
 
 
 def engine_batch(
-    task_name: str, genomes: int, trials: int, sdbc: bool, rng: np.random.Generator
+    task_name: str,
+    genomes: int,
+    trials: int,
+    sdbc: bool,
+    rng: np.random.Generator,
+    model: str = "rigid",
 ) -> tuple[int, float, float]:
-    """(robot-steps, CPU seconds, wall seconds) of one batch through our engine."""
+    """(robot-steps, CPU seconds, wall seconds) of one batch through our engine
+    with the physics ``model``."""
     task = make_task(task_name)
     g, s = random_batch(task, genomes, trials, rng)
     observers = [SdbcExtractor(check_values=False)] if sdbc else []
+    settings = EngineSettings(physics=PhysicsSettings(model=model))
     c0, w0 = time.process_time(), time.perf_counter()
-    r = run_batch(task, g, s, observers)
+    r = run_batch(task, g, s, observers, settings=settings)
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     return int(r.length.sum()) * task.layout.n_bodies, cpu, wall
+
+
+def _median_ratio(ours: list[float], theirs: list[float]) -> float:
+    """Median over the alternations of ours / theirs."""
+    return statistics.median(a / b for a, b in zip(ours, theirs, strict=True))
 
 
 def main() -> None:
@@ -266,6 +285,12 @@ def main() -> None:
     parser.add_argument("--genomes", type=int, default=200)
     parser.add_argument("--trials", type=int, default=10, help="trials per genome")
     parser.add_argument("--task", action="append", choices=sorted(PARAMS))
+    parser.add_argument(
+        "--model",
+        action="append",
+        choices=MODELS,
+        help="our physics model (default: every one)",
+    )
     parser.add_argument("--core", type=int, help="core to pin to (default: last)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--java", default="java")
@@ -284,8 +309,10 @@ def main() -> None:
     print(f"pinned to core {core}", flush=True)
     classpath = os.pathsep.join([str(classes), *map(str, classpath_jars(mase))])
     names = args.task or list(PARAMS)
+    models = args.model or list(MODELS)
+    configs = [*MASE_CONFIGS, *(f"{m}{s}" for m in models for s in ("", "+sdbc"))]
     rng = np.random.default_rng(args.seed)
-    series = {(t, c): Series() for t in names for c in CONFIGS}
+    series = {(t, c): Series() for t in names for c in configs}
     processes: dict[tuple[str, str], MaseProcess] = {}
     try:
         for t in names:
@@ -309,9 +336,10 @@ def main() -> None:
                 processes[(t, "mase+sdbc" if sdbc else "mase")] = p
         # Our engine warmed up too (imports, first allocations), untimed.
         for t in names:
-            engine_batch(t, 10, 2, True, rng)
+            for m in models:
+                engine_batch(t, 10, 2, True, rng, m)
         for k in range(args.alternations):
-            order = [(t, c) for t in names for c in CONFIGS]
+            order = [(t, c) for t in names for c in configs]
             if k % 2:
                 order.reverse()
             for t, c in order:
@@ -320,8 +348,9 @@ def main() -> None:
                     steps, cpu, wall = processes[(t, c)].batch()
                     robot_steps = steps * n_bodies
                 else:
+                    model, _, with_sdbc = c.partition("+")
                     robot_steps, cpu, wall = engine_batch(
-                        t, args.genomes, args.trials, c == "sdbc+sdbc", rng
+                        t, args.genomes, args.trials, bool(with_sdbc), rng, model
                     )
                 series[(t, c)].cpu.append(robot_steps / cpu)
                 series[(t, c)].wall.append(robot_steps / wall)
@@ -338,27 +367,24 @@ def main() -> None:
         f"\nmedians over {args.alternations} alternations, {args.genomes} genomes x "
         f"{args.trials} trials per batch, core {core}:"
     )
-    header = f"{'task':<17}{'':<6}" + "".join(f"{c:>12}" for c in CONFIGS)
-    header += f"{'sdbc/MASE':>11}{'+SDBC':>8}"
+    header = f"{'task':<17}{'':<6}" + "".join(f"{c:>15}" for c in configs)
+    header += "".join(f"{m + '/MASE':>16}{'+SDBC':>7}" for m in models)
     print(header)
     for t in names:
         for kind in ("cpu", "wall"):
-            rates = {c: getattr(series[(t, c)], kind) for c in CONFIGS}
-            bare = statistics.median(
-                a / b for a, b in zip(rates["sdbc"], rates["mase"], strict=True)
+            rates = {c: getattr(series[(t, c)], kind) for c in configs}
+            line = f"{t:<17}{kind:<6}" + "".join(
+                f"{statistics.median(rates[c]):>15,.0f}" for c in configs
             )
-            with_sdbc = statistics.median(
-                a / b
-                for a, b in zip(rates["sdbc+sdbc"], rates["mase+sdbc"], strict=True)
-            )
-            print(
-                f"{t:<17}{kind:<6}"
-                + "".join(f"{statistics.median(rates[c]):>12,.0f}" for c in CONFIGS)
-                + f"{bare:>11.2f}{with_sdbc:>8.2f}"
-            )
+            for m in models:
+                bare = _median_ratio(rates[m], rates["mase"])
+                with_sdbc = _median_ratio(rates[f"{m}+sdbc"], rates["mase+sdbc"])
+                line += f"{bare:>16.2f}{with_sdbc:>7.2f}"
+            print(line)
     print(
-        "(robot-steps per CPU-second and per wall-second; sdbc/MASE: median of the "
-        "per-alternation ratios, bare and with the SDBC)"
+        "(robot-steps per CPU-second and per wall-second; <model>/MASE: median of "
+        "the per-alternation ratios of our engine with that physics model to MASE, "
+        "bare and with the SDBC)"
     )
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)

@@ -10,6 +10,8 @@ time (``time.process_time``) to one part, minus the time of the timed parts it
 calls (so every part is exclusive and the parts add up):
 
 - chipmunk step: ``pymunk.Space.step``;
+- kinematic step: ``KinematicTrials.step`` and ``read`` (with ``--physics
+  model=kinematic``, where it replaces the chipmunk step and bulk transfer);
 - bulk transfer: the rest of ``TrialSpaces.read`` and ``TrialSpaces.step``
   (pymunk.batch reads and writes, the copies around them);
 - separation: ``TrialSpaces.separate`` (contacts read in bulk, projection; the
@@ -57,6 +59,7 @@ import pymunk
 from common import add_batch_arguments, batch_arguments, pin_to_core, random_batch
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, EngineSettings, run_batch
+from sdbc_sim.kinematic import KinematicTrials
 from sdbc_sim.network import TeamNetworks
 from sdbc_sim.physics import TrialSpaces
 from sdbc_sim.task import Task
@@ -64,6 +67,7 @@ from sdbc_sim.tasks import make_task
 
 PARTS = (
     "chipmunk step",
+    "kinematic step",
     "bulk transfer",
     "separation",
     "sensors",
@@ -132,6 +136,10 @@ def instrumented(clock: Clock, task: Task, extractor: SdbcExtractor | None):
         (TrialSpaces, "step", "bulk transfer"),
         (TrialSpaces, "separate", "separation"),
         (TrialSpaces, "disable", "compaction"),
+        (KinematicTrials, "read", "kinematic step"),
+        (KinematicTrials, "step", "kinematic step"),
+        (KinematicTrials, "separate", "separation"),
+        (KinematicTrials, "disable", "compaction"),
         (TeamNetworks, "forward", "network"),
         (BatchSimulation, "_drive", "drive"),
         (BatchSimulation, "state", "task state"),
@@ -232,10 +240,11 @@ def report(p: Profile) -> str:
             f"{p.calls[part]:>8}"
         )
     physics = p.seconds["chipmunk step"] + p.seconds["bulk transfer"]
-    lines.append(
-        f"  chipmunk + bulk transfer alone would run {p.robot_steps / physics:,.0f} "
-        "robot-steps per CPU-second"
-    )
+    if physics > 0.0:
+        lines.append(
+            f"  chipmunk + bulk transfer alone would run "
+            f"{p.robot_steps / physics:,.0f} robot-steps per CPU-second"
+        )
     return "\n".join(lines)
 
 

@@ -28,3 +28,20 @@ def placed() -> Callable[[Task, np.ndarray, np.ndarray], Task]:
     """``placed(task, position, angle)``: ``task`` with every trial starting from
     ``position`` (R, 2) and ``angle`` (R,) instead of random ones."""
     return _place
+
+
+@pytest.fixture
+def pushing_crowd() -> Task:
+    """Gate escape with 8 robots in a 60 x 60 arena and the gate open for its
+    1000 steps: robots under random outputs keep running into each other and the
+    walls (the physics models' overlap tests)."""
+    from sdbc_sim.tasks import make_task
+
+    return make_task(
+        "gate_escape",
+        arena_size=60.0,
+        n_robots=8,
+        start_spacing=6.0,
+        max_steps=1000,
+        gate_closing_steps=1000,
+    )

@@ -15,7 +15,7 @@ from sdbc_sim.engine import (
     controller_fitness,
 )
 from sdbc_sim.network import forward
-from sdbc_sim.physics import PhysicsSettings
+from sdbc_sim.physics import MODELS, PhysicsSettings
 from sdbc_sim.task_state import TaskDescription, TaskState
 from sdbc_sim.tasks import make_task
 
@@ -23,6 +23,11 @@ from sdbc_sim import run_batch
 
 CROWDED = {"arena_size": 60.0, "start_spacing": 6.0, "n_robots": 6, "max_steps": 150}
 """A gate escape arena small enough that robots meet each other and the walls."""
+
+
+def model_settings(model: str, **physics: object) -> EngineSettings:
+    """Engine settings with the physics ``model`` and other physics settings."""
+    return EngineSettings(PhysicsSettings(model=model, **physics))  # type: ignore[arg-type]
 
 
 class Trajectories:
@@ -61,29 +66,42 @@ def same(a: list[tuple[np.ndarray, ...]], b: list[tuple[np.ndarray, ...]]) -> bo
     )
 
 
-@pytest.fixture(scope="module")
-def big_batch():
+@pytest.fixture(scope="module", params=MODELS)
+def big_batch(request):
     """2000 trials (200 genomes x 10 seeds) of a crowded gate escape, with the
-    trajectories of four of them."""
+    trajectories of four of them, under each physics model."""
+    model = request.param
     task = make_task("gate_escape", **CROWDED)
     rng = np.random.default_rng(42)
     genomes = rng.uniform(-1.0, 1.0, (200, task.genome_length))
     seeds = rng.integers(0, 2**40, (200, 10))
     picks = [(0, 0), (57, 3), (123, 9), (199, 9)]
     watch = Trajectories([g * 10 + t for g, t in picks])
-    result = run_batch(task, genomes, seeds, [watch])
-    return task, genomes, seeds, picks, watch, result
+    result = run_batch(task, genomes, seeds, [watch], settings=model_settings(model))
+    return model, task, genomes, seeds, picks, watch, result
+
+
+NEAR = {"rigid": 0.01, "kinematic": 1.0}
+"""How near two robots of the crowded gate escape came to touching in a batch
+that tests independence: the rigid model pushes them into contact; the kinematic
+model refuses a move that would overlap, so they stop within a step (speed 1)."""
 
 
 @pytest.mark.slow
 def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
-    task, genomes, seeds, picks, watch, result = big_batch
-    # The batch is only a test of independence if robots did touch.
-    assert watch.closest < 2 * task.config.robot_radius + 0.01
+    model, task, genomes, seeds, picks, watch, result = big_batch
+    # The batch is only a test of independence if robots did meet.
+    assert watch.closest < 2 * task.config.robot_radius + NEAR[model]
     assert len(set(result.length.ravel().tolist())) > 1
     for k, (g, t) in enumerate(picks):
         alone = Trajectories([0])
-        r = run_batch(task, genomes[g : g + 1], seeds[g : g + 1, t : t + 1], [alone])
+        r = run_batch(
+            task,
+            genomes[g : g + 1],
+            seeds[g : g + 1, t : t + 1],
+            [alone],
+            settings=model_settings(model),
+        )
         assert r.fitness[0, 0] == result.fitness[g, t]
         assert np.array_equal(r.characterisation[0, 0], result.characterisation[g, t])
         assert r.length[0, 0] == result.length[g, t]
@@ -92,15 +110,16 @@ def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
 
 @pytest.mark.slow
 def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
-    task, genomes, seeds, picks, _, result = big_batch
+    model, task, genomes, seeds, picks, _, result = big_batch
     g, t = picks[1]
     rng = np.random.default_rng(3)
     others = rng.uniform(-1.0, 1.0, (30, task.genome_length))
     mixed_g = np.vstack([others[:17], genomes[g : g + 1], others[17:]])
     mixed_s = rng.integers(0, 2**40, (31, 3))
     mixed_s[17, 2] = seeds[g, t]
-    settings = EngineSettings(PhysicsSettings(trials_per_space=8))
-    r = run_batch(task, mixed_g, mixed_s, settings=settings)
+    r = run_batch(
+        task, mixed_g, mixed_s, settings=model_settings(model, trials_per_space=8)
+    )
     assert r.fitness[17, 2] == result.fitness[g, t]
     assert np.array_equal(r.characterisation[17, 2], result.characterisation[g, t])
     assert r.length[17, 2] == result.length[g, t]
@@ -108,17 +127,20 @@ def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
 
 @pytest.mark.slow
 def test_another_process_gives_the_same_trial(big_batch, tmp_path) -> None:
-    task, genomes, seeds, picks, _, result = big_batch
+    model, task, genomes, seeds, picks, _, result = big_batch
     g, t = picks[2]
     genome_file = tmp_path / "genome.npy"
     np.save(genome_file, genomes[g])
     script = (
         "import numpy as np, sys\n"
         "from sdbc_sim import run_batch\n"
+        "from sdbc_sim.engine import EngineSettings\n"
+        "from sdbc_sim.physics import PhysicsSettings\n"
         "from sdbc_sim.tasks import make_task\n"
         f"task = make_task('gate_escape', **{CROWDED!r})\n"
         "g = np.load(sys.argv[1])[None]\n"
-        f"r = run_batch(task, g, np.array([[{int(seeds[g, t])}]]))\n"
+        f"settings = EngineSettings(PhysicsSettings(model={model!r}))\n"
+        f"r = run_batch(task, g, np.array([[{int(seeds[g, t])}]]), settings=settings)\n"
         "print(r.fitness[0, 0].hex(), r.length[0, 0],"
         " *[v.hex() for v in r.characterisation[0, 0]])\n"
     )
@@ -135,13 +157,20 @@ def test_another_process_gives_the_same_trial(big_batch, tmp_path) -> None:
     assert [float.fromhex(v) for v in out[2:]] == result.characterisation[g, t].tolist()
 
 
-def test_dropping_finished_trials_changes_nothing() -> None:
+@pytest.mark.parametrize("model", MODELS)
+def test_dropping_finished_trials_changes_nothing(model: str) -> None:
     task = make_task("gate_escape", **CROWDED)
     rng = np.random.default_rng(5)
     genomes = rng.uniform(-1.0, 1.0, (12, task.genome_length))
     seeds = rng.integers(0, 2**40, (12, 5))
+    physics = PhysicsSettings(model=model)  # type: ignore[arg-type]
     results = [
-        run_batch(task, genomes, seeds, settings=EngineSettings(compact_fraction=f))
+        run_batch(
+            task,
+            genomes,
+            seeds,
+            settings=EngineSettings(physics=physics, compact_fraction=f),
+        )
         for f in (0.01, 1.0)
     ]
     assert len(set(results[0].length.ravel().tolist())) > 1
@@ -149,13 +178,15 @@ def test_dropping_finished_trials_changes_nothing() -> None:
         assert np.array_equal(getattr(results[0], name), getattr(results[1], name))
 
 
-def test_live_stepper_matches_the_batch() -> None:
+@pytest.mark.parametrize("model", MODELS)
+def test_live_stepper_matches_the_batch(model: str) -> None:
     task = make_task("gate_escape", **CROWDED)
     rng = np.random.default_rng(9)
     genome = rng.uniform(-1.0, 1.0, task.genome_length)
     batch = Trajectories([0])
-    r = run_batch(task, genome[None], np.array([[77]]), [batch])
-    stepper = TrialStepper(task)
+    settings = model_settings(model)
+    r = run_batch(task, genome[None], np.array([[77]]), [batch], settings=settings)
+    stepper = TrialStepper(task, settings)
     stepper.reset(77)
     live = []
     while not stepper.done:

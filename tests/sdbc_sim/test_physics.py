@@ -37,17 +37,10 @@ def test_bad_physics_settings_are_named() -> None:
         SlotGrid.fit((0.0, 0.0, 70000.0, 10.0), margin=1.0, cell=8.0)
 
 
-def test_random_controllers_never_sink_into_walls_or_each_other() -> None:
+def test_random_controllers_never_sink_into_walls_or_each_other(pushing_crowd) -> None:
     """8 robots in a 60 x 60 arena under random outputs for 1000 steps: no robot
     overlaps a wall or another robot by more than 5% of its radius."""
-    task = make_task(
-        "gate_escape",
-        arena_size=60.0,
-        n_robots=8,
-        start_spacing=6.0,
-        max_steps=1000,
-        gate_closing_steps=1000,
-    )
+    task = pushing_crowd
     r = task.config.robot_radius
     sim = BatchSimulation(task, np.arange(40))
     rng = np.random.default_rng(0)

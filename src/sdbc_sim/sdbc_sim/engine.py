@@ -1,8 +1,10 @@
 """The batched simulation engine: ``run_batch(task, genomes, seeds, observers)``.
 
 Every trial of a batch steps together: the task's sensors, the networks and the
-task's rules run as numpy over all robots of all live trials, the physics as a few
-pymunk Spaces moved in bulk (:mod:`sdbc_sim.physics`). A trial that ends freezes
+task's rules run as numpy over all robots of all live trials, the physics by the
+model ``PhysicsSettings.model`` names: rigid bodies in a few pymunk Spaces moved
+in bulk (:mod:`sdbc_sim.physics`, the default) or the authors' kinematic robots
+in one compiled loop (:mod:`sdbc_sim.kinematic`). A trial that ends freezes
 at once (its results are taken at its last step); its rows keep riding along, held
 still, until enough trials have ended to make dropping them worthwhile
 (``compact_fraction``), and then stop costing anything.
@@ -24,15 +26,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sdbc_sim.kinematic import KinematicTrials
 from sdbc_sim.network import TeamNetworks, check_genomes
 from sdbc_sim.observer import NetworkObserver, Observer
-from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
+from sdbc_sim.physics import (
+    READ_WIDTH,
+    WRITE_WIDTH,
+    PhysicsSettings,
+    TrialPhysics,
+    TrialSpaces,
+)
 from sdbc_sim.task import BodyState, Task
 from sdbc_sim.task_state import GroupState, TaskState
 
 FITNESS_MEANS = ("harmonic", "arithmetic")
 HARMONIC_FLOOR = 1e-4
 """A trial's fitness counts as at least this in the harmonic mean (authors' code)."""
+PHYSICS_MODELS: dict[str, type[TrialSpaces] | type[KinematicTrials]] = {
+    "rigid": TrialSpaces,
+    "kinematic": KinematicTrials,
+}
+"""The class behind each ``PhysicsSettings.model``."""
 
 
 @dataclass(frozen=True)
@@ -116,7 +130,10 @@ class BatchSimulation:
                 f"{task.name}: reset gave positions {position.shape} and angles "
                 f"{angle.shape} for {n} trials of {self._n_bodies} bodies"
             )
-        self.spaces = TrialSpaces.of_task(task, position, angle, self.settings.physics)
+        physics = self.settings.physics
+        self.spaces: TrialPhysics = PHYSICS_MODELS[physics.model].of_task(
+            task, position, angle, physics
+        )
         self._rows = np.empty((n * self._n_bodies, READ_WIDTH))
         self._turn_rate = np.zeros((n, self._n_bodies))
         self.spaces.read(self._rows)

@@ -47,7 +47,7 @@ import gc
 import math
 import weakref
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, Protocol
 
 import numpy as np
 import pymunk
@@ -82,6 +82,9 @@ WRITE_WIDTH = 4
 ACTUATIONS = ("velocity", "force")
 """How the commanded motion reaches chipmunk (:class:`PhysicsSettings`)."""
 Actuation = Literal["velocity", "force"]
+MODELS = ("rigid", "kinematic")
+"""How bodies move and meet (:class:`PhysicsSettings`)."""
+Model = Literal["rigid", "kinematic"]
 
 
 @dataclass(frozen=True)
@@ -120,9 +123,18 @@ atexit.register(gc.collect)
 
 @dataclass(frozen=True)
 class PhysicsSettings:
-    """How trials are laid out in pymunk and how pymunk steps them.
+    """How bodies move and meet: the model, and for the rigid one how trials are
+    laid out in pymunk and how pymunk steps them.
 
     Attributes:
+        model: ``rigid`` (the default): bodies are pymunk rigid bodies, in
+            Spaces of many trials (:class:`TrialSpaces`); contacts go through
+            chipmunk's solver and the overlap projection, so robots push each
+            other and slide along walls. ``kinematic``: the authors' robots
+            (:mod:`sdbc_sim.kinematic`): a move that would overlap is refused and
+            retried sideways at half speed; nobody pushes anybody. It needs
+            ``actuation="velocity"``, and the settings below it ignores (all but
+            ``dt``).
         trials_per_space: Most trials in one Space. Chipmunk's cost per body grows
             past a few hundred trials per Space (cache). The default is the best of
             ``bench/engine.py --task gate_escape --steps 300 --sweep
@@ -160,8 +172,18 @@ class PhysicsSettings:
     hash_cells_per_trial: int = 64
     separation_iterations: int = 8
     actuation: Actuation = "velocity"
+    model: Model = "rigid"
 
     def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise ValueError(
+                f"physics: model must be one of {', '.join(MODELS)}, got {self.model!r}"
+            )
+        if self.model == "kinematic" and self.actuation != "velocity":
+            raise ValueError(
+                "physics: the kinematic model moves bodies by their commanded "
+                f"velocity; actuation {self.actuation!r} needs model 'rigid'"
+            )
         if self.actuation not in ACTUATIONS:
             raise ValueError(
                 f"physics: actuation must be one of {', '.join(ACTUATIONS)}, got "
@@ -205,6 +227,66 @@ def _is_power_of_two(x: float) -> bool:
 
 def _next_power_of_two(x: float) -> float:
     return 2.0 ** math.ceil(math.log2(x))
+
+
+def task_geometry(
+    task: Task,
+) -> tuple[np.ndarray, float, np.ndarray, tuple[float, float, float, float]]:
+    """(radii (R,), mass, walls (P, 2, 2), extent) of a task's trials, as a
+    physics model is built from them."""
+    layout = task.layout
+    return (
+        np.asarray(layout.radii, dtype=np.float64),
+        layout.mass,
+        np.asarray(task.walls, dtype=np.float64).reshape(-1, 2, 2),
+        task.extent,
+    )
+
+
+class TrialPhysics(Protocol):
+    """What the engine asks of a physics model (one per ``PhysicsSettings.model``):
+    the bodies of a batch's live trials, stepped together. Rows hold the live
+    trials in increasing trial order, R bodies each; state rows are x, y, angle,
+    vx, vy, trial-local. :class:`TrialSpaces` documents each call."""
+
+    live: np.ndarray
+    """Indices of the live trials, in row order."""
+
+    @property
+    def masses(self) -> np.ndarray:
+        """(rows,) mass of every live body."""
+        ...
+
+    @property
+    def drive_columns(self) -> DriveColumns:
+        """The layout of the drive rows :meth:`step` takes."""
+        ...
+
+    def read(self, out: np.ndarray) -> None:
+        """Fills ``out`` (rows, 5) with the live bodies' state."""
+        ...
+
+    def step(self, drive: np.ndarray, state: np.ndarray) -> None:
+        """Steps every live body with ``drive`` and fills ``state``."""
+        ...
+
+    def separate(
+        self, out: np.ndarray, enabled: np.ndarray, anchored: np.ndarray | None = None
+    ) -> None:
+        """Removes overlaps beyond the tolerance from ``out``."""
+        ...
+
+    def anchor(self, trials: np.ndarray, bodies: np.ndarray, on: np.ndarray) -> None:
+        """Anchors bodies (``on``) or frees them."""
+        ...
+
+    def disable(self, trials: np.ndarray, bodies: np.ndarray) -> None:
+        """Takes bodies out of every collision and stops them."""
+        ...
+
+    def compact(self, keep: np.ndarray) -> None:
+        """Drops the live trials not in ``keep``."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -560,16 +642,7 @@ class TrialSpaces:
     ) -> TrialSpaces:
         """The Spaces of a batch of ``task``'s trials starting from ``position``
         (B, R, 2) and ``angle`` (B, R)."""
-        layout = task.layout
-        return cls(
-            np.asarray(layout.radii),
-            layout.mass,
-            np.asarray(task.walls, dtype=np.float64).reshape(-1, 2, 2),
-            task.extent,
-            position,
-            angle,
-            settings,
-        )
+        return cls(*task_geometry(task), position, angle, settings)
 
     def _index_spaces(self) -> None:
         """Row ranges of each Space in the engine's (live) rows."""
