@@ -35,6 +35,7 @@ from functools import partial
 from typing import Any
 
 import numpy as np
+from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.callback_groups import (
     MutuallyExclusiveCallbackGroup,
@@ -62,6 +63,9 @@ from sdbc_evolution.sdbc.messages import MessageSdbcExtractor
 from sdbc_msgs.msg import TaskState as TaskStateMsg
 from sdbc_msgs.srv import RunTrial
 
+PHYSICS_MODEL_PARAMETER = "physics_model"
+"""The simulator's parameter naming its physics model (``sdbc_sim``'s simulator
+node has it; another system's need not)."""
 TRIAL_ATTEMPTS = 2
 """How often a trial is run before an incomplete task state stream is an error."""
 DISCOVERY_GRACE = 0.5
@@ -199,6 +203,9 @@ class GraphClient:
         stop: When set, waiting stops with :class:`Stopped`.
         n_robots: The number of robots (controllers); needed when ``task`` is
             None, and must agree with the task otherwise.
+        physics: The physics model the simulator must run (its
+            ``physics_model`` parameter, checked by :meth:`check_task` when the
+            simulator declares it); None: not checked.
 
     Raises:
         ValueError: ``n_robots`` missing or not positive, or at odds with ``task``.
@@ -213,6 +220,7 @@ class GraphClient:
         timeout: float = 30.0,
         stop: threading.Event | None = None,
         n_robots: int | None = None,
+        physics: str | None = None,
     ) -> None:
         if task is not None:
             if n_robots not in (None, task.layout.n_controlled):
@@ -230,6 +238,7 @@ class GraphClient:
         self.task = task
         self.task_name = task_name
         self.task_config = dict(task_config or {})
+        self.physics = physics
         self.n_robots = n_robots
         self.description: TaskDescription | None = (
             None if task is None else task.description
@@ -342,7 +351,9 @@ class GraphClient:
 
     def check_task(self) -> None:
         """Raises GraphClientError unless the simulator runs this client's task
-        with the same settings."""
+        with the same settings, and the client's physics model if it has one and
+        the simulator has a ``physics_model`` parameter (another system's
+        simulator need not)."""
         if not self._simulator_parameters.wait_for_service(self.timeout):
             raise GraphClientError(
                 f"no simulator parameter service within {self.timeout:g} s"
@@ -357,6 +368,21 @@ class GraphClient:
             raise GraphClientError(
                 f"the simulator runs task {name!r} with settings {config}, this "
                 f"client expects {self.task_name!r} with {self.task_config}"
+            )
+        if self.physics is None:
+            return
+        # Asked alone: a simulator without the parameter answers no values at all.
+        answer = self._call(
+            self._simulator_parameters,
+            GetParameters.Request(names=[PHYSICS_MODEL_PARAMETER]),
+            "answer from the simulator's parameter service",
+        )
+        values = [v for v in answer.values if v.type == ParameterType.PARAMETER_STRING]
+        if values and values[0].string_value != self.physics:
+            raise GraphClientError(
+                f"the simulator runs the {values[0].string_value!r} physics model "
+                f"(its {PHYSICS_MODEL_PARAMETER} parameter), this client expects "
+                f"{self.physics!r}"
             )
 
     def set_genome(self, genome: np.ndarray) -> None:

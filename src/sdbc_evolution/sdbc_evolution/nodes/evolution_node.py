@@ -29,7 +29,9 @@ parameter does so after every generation.
 
 The graph's task is named once, by the ``task`` and ``task_config`` parameters that
 ``sdbc-graph`` gives every node; they take precedence over the experiment
-configuration's.
+configuration's. The physics model is the configuration's (``evaluation.physics``);
+a live graph whose simulator runs another (its ``physics_model`` parameter) is
+refused when the node connects to it.
 
 Usage::
 
@@ -310,6 +312,7 @@ class EvolutionNode(Node):
                     timeout=self.graph_timeout,
                     stop=self.stop,
                     n_robots=self.robots or None,
+                    physics=self.spec.physics,
                 )
                 client.wait_for_graph()
                 self._client = client

@@ -253,8 +253,13 @@ def _report(experiment: Experiment, out: Path, gif: bool) -> None:
     from sdbc_sim.render import render_trial
 
     path = out / GIF_NAME
+    spec = task_spec(experiment.config)
     render_trial(
-        task_spec(experiment.config).build(), genome, experiment.config.seed, path
+        spec.build(),
+        genome,
+        experiment.config.seed,
+        path,
+        settings=spec.engine_settings(),
     )
     print(f"its trial: {path.resolve()}")
 

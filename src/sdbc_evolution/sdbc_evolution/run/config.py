@@ -109,6 +109,11 @@ class EvaluationConfig:
     fitness_mean: Literal["harmonic", "arithmetic"] = "harmonic"
     """How a controller's fitness sums up its trials: "harmonic" (the authors'
     code; trials under 1e-4 count as 1e-4) or "arithmetic"."""
+    physics: Literal["rigid", "kinematic"] = "rigid"
+    """How robots move and meet (``sdbc_sim.physics.PhysicsSettings.model``):
+    "rigid" (pymunk rigid bodies; contacts go through chipmunk's solver, so robots
+    push each other and slide along walls) or "kinematic" (the authors' robots: a
+    move that would overlap is refused and retried sideways at half speed)."""
 
 
 @settings

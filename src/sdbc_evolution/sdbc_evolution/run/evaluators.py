@@ -24,8 +24,9 @@ same arrays to the bit.
   workers, so a scheduler must only be reachable by its users (TLS with client
   certificates, or a private network).
 
-Workers build the task themselves from a :class:`TaskSpec` (name + overrides), once
-per process, so nothing heavier than genomes and seeds crosses process boundaries.
+Workers build the task themselves from a :class:`TaskSpec` (name + overrides; the
+physics model and fitness mean ride along), once per process, so nothing heavier
+than genomes and seeds crosses process boundaries.
 """
 
 from __future__ import annotations
@@ -37,13 +38,16 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from concurrent.futures import CancelledError, ProcessPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, Literal, NoReturn
 
 import numpy as np
 
 from sdbc_evolution.characterise.evaluation import SDBC, TASK, Evaluation
 from sdbc_evolution.characterise.registry import ALWAYS, CharacterisationSpec
 from sdbc_evolution.run.processes import available_cores, worker_pool
+
+if TYPE_CHECKING:
+    from sdbc_sim.engine import EngineSettings
 
 __all__ = ["Evaluation", "Evaluator", "TaskInfo", "TaskSpec"]
 
@@ -56,12 +60,14 @@ LOST_POLL_SECONDS = 0.05
 @dataclass(frozen=True)
 class TaskSpec:
     """What a worker needs to evaluate: the task's registry name and overrides,
-    and how trials sum up into a controller's fitness.
+    the physics model, and how trials sum up into a controller's fitness.
 
     Attributes:
         name: Task name in the ``sdbc_sim.tasks`` registry.
         overrides: Settings that differ from the task's defaults.
         fitness_mean: "harmonic" or "arithmetic" (see ``sdbc_sim.engine.run_batch``).
+        physics: The engine's physics model, "rigid" or "kinematic" (see
+            ``sdbc_sim.physics.PhysicsSettings.model``).
         characterisations: Characterisations to compute besides the task-specific
             one and the paper's SDBC, which every evaluation carries.
     """
@@ -69,6 +75,7 @@ class TaskSpec:
     name: str
     overrides: Mapping[str, Any] = field(default_factory=dict)
     fitness_mean: str = "harmonic"
+    physics: Literal["rigid", "kinematic"] = "rigid"
     characterisations: tuple[CharacterisationSpec, ...] = ()
 
     def all_characterisations(self) -> tuple[CharacterisationSpec, ...]:
@@ -87,6 +94,14 @@ class TaskSpec:
         from sdbc_sim.tasks import make_task
 
         return make_task(self.name, **dict(self.overrides))
+
+    def engine_settings(self) -> EngineSettings:
+        """The engine's settings for this spec's physics model (raises
+        ValueError for an unknown model)."""
+        from sdbc_sim.engine import EngineSettings
+        from sdbc_sim.physics import PhysicsSettings
+
+        return EngineSettings(physics=PhysicsSettings(model=self.physics))
 
 
 @dataclass(frozen=True)
@@ -162,6 +177,7 @@ def evaluate_chunk(
         seeds,
         observers=tuple(c for c in characterisers.values() if c.observes),
         fitness_mean=spec.fitness_mean,
+        settings=spec.engine_settings(),
     )
     trials = seeds.shape[1]
     return Evaluation(

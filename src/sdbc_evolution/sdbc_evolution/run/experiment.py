@@ -96,6 +96,7 @@ def task_spec(config: ExperimentConfig) -> TaskSpec:
         name=config.task,
         overrides=dict(config.task_config),
         fitness_mean=config.evaluation.fitness_mean,
+        physics=config.evaluation.physics,
         characterisations=() if characterisation is None else (characterisation,),
     )
 

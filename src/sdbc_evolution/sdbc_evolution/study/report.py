@@ -395,6 +395,36 @@ def _sd(x: np.ndarray) -> float:
     return float(np.std(x, ddof=1)) if x.size > 1 else float("nan")
 
 
+def _physics_difference(config: ExperimentConfig) -> str:
+    """The bullet on how the study's robots move (``evaluation.physics``), beside
+    the authors' kinematic robots."""
+    if config.evaluation.physics == "kinematic":
+        return (
+            "- **Physics.** Our robots move as the authors' did (`evaluation.physics: "
+            "kinematic`): turn, then move; a move that would overlap is refused and "
+            "retried sideways at half speed, and nobody pushes anybody. Two choices "
+            "of ours differ from their code: the first sidestep is always to the "
+            "left (theirs draws the side at random), and both sidesteps go at half "
+            "the commanded speed (their second at 0.5 units per step)."
+        )
+    return (
+        "- **Physics.** Our robots are pymunk bodies colliding through chipmunk's "
+        "solver; the authors' robots were kinematic (turn, then move; a blocked move "
+        "refused or retried sideways). Pushing, sliding along walls and jams differ, "
+        "and with them the fitness landscape and the behaviours there are to find. "
+        "Where the paper is silent the engine follows the authors' code: a robot "
+        "moves in the step it is told (the commanded velocity is written before "
+        "chipmunk's step), and in resource sharing a stop freezes the heading and "
+        "the charging input means 'in the station'. These are the defaults since "
+        "2026-12-01; studies made before drove robots by force (a robot moved one "
+        "step after it was told), let a stopped robot turn and sensed 'charged at "
+        "the last step'. What "
+        "remains: a teammate can push a docked robot off the station (an option, "
+        "`anchor_docked`, refuses that, but was off here), and contacts go through "
+        "the solver rather than being refused."
+    )
+
+
 def _differences(analysis: Analysis) -> list[str]:
     claims = analysis.claims
     counts = Counter(c.verdict for c in claims)
@@ -432,20 +462,7 @@ def _differences(analysis: Analysis) -> list[str]:
         "NS-TS vs NS-SD+ gap is 'relatively small') cannot show, and a Mann-Whitney "
         "test on so few runs has little power: *inconclusive* means our runs cannot "
         "tell, not that the paper is wrong.",
-        "- **Physics.** Our robots are pymunk bodies colliding through chipmunk's "
-        "solver; the authors' robots were kinematic (turn, then move; a blocked move "
-        "refused or retried sideways). Pushing, sliding along walls and jams differ, "
-        "and with them the fitness landscape and the behaviours there are to find. "
-        "Where the paper is silent the engine follows the authors' code: a robot "
-        "moves in the step it is told (the commanded velocity is written before "
-        "chipmunk's step), and in resource sharing a stop freezes the heading and "
-        "the charging input means 'in the station'. These are the defaults since "
-        "2026-12-01; studies made before drove robots by force (a robot moved one "
-        "step after it was told), let a stopped robot turn and sensed 'charged at "
-        "the last step'. What "
-        "remains: a teammate can push a docked robot off the station (an option, "
-        "`anchor_docked`, refuses that, but was off here), and contacts go through "
-        "the solver rather than being refused.",
+        _physics_difference(some),
         "- **Task details.** The paper's parameter table is lost; the tasks follow "
         "docs/reference-setup.md, i.e. the authors' code where the paper is silent, "
         "and the paper's fitness formulas (gate escape uses (g + t/tau)/(1 + N), "

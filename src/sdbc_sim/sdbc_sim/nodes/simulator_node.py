@@ -28,12 +28,14 @@ writers ask for them only at their periodic heartbeat, and the wait cost 1 to
 The answer carries the trial's fitness, task-specific characterisation and length,
 or ``success = false`` and a message saying why the trial was aborted; the node then
 serves the next trial as usual. Given the same genome on the controllers and the
-same seed, a live trial equals the batched engine's to the bit: the engine's
-stepping and network code run on both sides, and doubles cross DDS unchanged.
+same seed, a live trial equals the batched engine's to the bit (with the same
+physics model, the ``physics_model`` parameter): the engine's stepping and
+network code run on both sides, and doubles cross DDS unchanged.
 
 Usage::
 
     simulator_node --ros-args -p task:=gate_escape -p command_timeout:=2.0
+    simulator_node --ros-args -p task:=gate_escape -p physics_model:=kinematic
     simulator_node --ros-args --params-file configs/ros/gate_escape.yaml
 """
 
@@ -43,7 +45,7 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from rcl_interfaces.msg import (
@@ -58,7 +60,7 @@ from visualization_msgs.msg import MarkerArray
 
 from sdbc_msgs.msg import TaskState as TaskStateMsg
 from sdbc_msgs.srv import RunTrial
-from sdbc_sim.engine import TrialStepper
+from sdbc_sim.engine import EngineSettings, TrialStepper
 from sdbc_sim.nodes.interface import (
     DISPLAY_QOS,
     MARKERS_TOPIC,
@@ -71,10 +73,13 @@ from sdbc_sim.nodes.interface import (
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
 from sdbc_sim.nodes.markers import markers_from_task_state
 from sdbc_sim.nodes.startup import NodeProgram, run_node_program, spin_until_stopped
+from sdbc_sim.physics import MODELS, Model, PhysicsSettings
 from sdbc_sim.task_state_msgs import task_state_to_msg
 
 DEFAULT_TASK = "gate_escape"
 """Task of a node started without a ``task`` parameter."""
+DEFAULT_PHYSICS_MODEL = "rigid"
+"""Physics model of a node started without a ``physics_model`` parameter."""
 DEFAULT_COMMAND_TIMEOUT = 2.0
 """Seconds to wait for every robot's command at a step."""
 DEFAULT_DISCOVERY_TIMEOUT = 10.0
@@ -85,6 +90,21 @@ MAX_TIMEOUT = 3600.0
 """Largest timeout a parameter accepts, seconds."""
 READER_POLL = 0.02
 """Seconds between checks while waiting for readers to match."""
+
+
+def engine_settings(physics_model: str) -> EngineSettings:
+    """The engine settings of the ``physics_model`` parameter.
+
+    Raises:
+        ValueError: Not one of :data:`sdbc_sim.physics.MODELS`, naming the
+            parameter and the allowed values.
+    """
+    if physics_model not in MODELS:
+        raise ValueError(
+            f"parameter physics_model: {physics_model!r} is not one of "
+            f"{', '.join(MODELS)}"
+        )
+    return EngineSettings(physics=PhysicsSettings(model=cast(Model, physics_model)))
 
 
 class TrialAborted(RuntimeError):
@@ -114,6 +134,9 @@ class SimulatorNode(Node):
     Parameters (ROS):
         task: Task name (read-only).
         task_config: YAML mapping of task setting overrides (read-only).
+        physics_model: The engine's physics model, ``rigid`` (pymunk rigid
+            bodies, the default) or ``kinematic`` (the authors' robots); see
+            ``sdbc_sim.physics.PhysicsSettings.model`` (read-only).
         command_timeout: Seconds to wait for every robot's command at a step.
         discovery_timeout: Seconds to wait at a trial's start for every robot's
             controller to connect.
@@ -125,7 +148,7 @@ class SimulatorNode(Node):
         **kwargs: Passed on to :class:`rclpy.node.Node`.
 
     Raises:
-        ValueError: A bad task or task_config, naming it.
+        ValueError: A bad task, task_config or physics_model, naming it.
     """
 
     def __init__(self, interrupt: Any = None, **kwargs: Any) -> None:
@@ -142,6 +165,16 @@ class SimulatorNode(Node):
                 description="YAML mapping of task setting overrides", read_only=True
             ),
         ).value
+        physics_model = self.declare_parameter(
+            "physics_model",
+            DEFAULT_PHYSICS_MODEL,
+            ParameterDescriptor(
+                description="Physics model: rigid (pymunk bodies) or kinematic "
+                "(the authors' robots: a blocked move is refused or retried sideways)",
+                read_only=True,
+            ),
+        ).value
+        settings = engine_settings(physics_model)
         for name, default, what in (
             ("command_timeout", DEFAULT_COMMAND_TIMEOUT, "every robot's command"),
             ("discovery_timeout", DEFAULT_DISCOVERY_TIMEOUT, "every controller"),
@@ -166,7 +199,8 @@ class SimulatorNode(Node):
         )
         self.task = build_task(task_name, task_config)
         self.characterisation_names = list(self.task.characterisation_names)
-        self._stepper = TrialStepper(self.task)
+        self.physics_model: str = physics_model
+        self._stepper = TrialStepper(self.task, settings)
         trial_group = MutuallyExclusiveCallbackGroup()
         self.lockstep = Lockstep(
             self,
@@ -188,7 +222,7 @@ class SimulatorNode(Node):
         self.get_logger().info(
             f"task {self.task.name}: {self.task.layout.n_controlled} robots, "
             f"{self.task.network.n_inputs} inputs, {self.task.network.n_outputs} "
-            "outputs per robot"
+            f"outputs per robot; {physics_model} physics"
         )
 
     def _parameter(self, name: str) -> float:
