@@ -57,6 +57,16 @@ def test_profile_parts_add_up_and_unwrap() -> None:
     assert (TrialSpaces.step, BatchSimulation.state, BatchSimulation.__init__) == saved
 
 
+def test_profile_times_the_kinematic_step_in_place_of_chipmunk() -> None:
+    settings = common.engine_settings(["model=kinematic"])
+    p = engine_profile.profile_task("gate_escape", 2, 2, 20, 0, settings, sdbc=True)
+    assert sum(p.seconds.values()) == pytest.approx(p.total)
+    # 20 steps and the read that fills the rows at the start.
+    assert p.calls["kinematic step"] == 21
+    assert p.calls["chipmunk step"] == p.calls["bulk transfer"] == 0
+    assert "chipmunk + bulk transfer" not in engine_profile.report(p)
+
+
 def test_physics_overrides() -> None:
     assert common.physics_overrides(["hash_cell=32", "iterations=4"]) == {
         "hash_cell": 32,

@@ -3,13 +3,14 @@
 The engine compiles the loops whose whole-array numpy form paid a call's
 overhead on many small arrays at every step (the overlap projection and its
 bookkeeping, the wall rays, the robot arcs, the network's sums, some tasks'
-sensors and rules, the SDBC's features). Importing numba costs about 0.5 s of
-CPU and loading compiled code from its cache 0.7 s more, so nothing is loaded at
-import: :func:`load` loads every loop when the first batch of trials is set up
-(``TrialSpaces``), and a loop called before that loads itself. A process that
-never steps the physics (a controller node, a command-line tool) never pays it,
-and one that does pays it at a known point rather than at whichever step first
-needs a loop.
+sensors and rules, the SDBC's features), and the kinematic model's step, which
+has no array formulation (one robot's move depends on the moves before it).
+Importing numba costs about 0.5 s of CPU and loading compiled code from its cache
+0.7 s more, so nothing is loaded at import: :func:`load` loads every loop when
+the first batch of trials is set up (``TrialSpaces``, ``KinematicTrials``), and a
+loop called before that loads itself. A process that never steps the physics (a
+controller node, a command-line tool) never pays it, and one that does pays it at
+a known point rather than at whichever step first needs a loop.
 
 Every loop has one signature (its callers pass contiguous arrays of the types it
 names) and is compiled without fast-math: its additions, multiplications,
