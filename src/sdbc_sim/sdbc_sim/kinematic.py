@@ -12,13 +12,16 @@ ever arises, and there is no contact solver to iterate.
 Where the authors' code differs:
 
 - The first side tried is always the left (counterclockwise); theirs draws it at
-  random, from the simulation's random stream. Drawing it would make the physics
-  consume randomness that the task's own draws share in their code and not here.
+  random, from the simulation's random stream. Drawing it (or the order below)
+  would make the physics consume randomness that the task's own draws share in
+  their code and not here.
 - Both sidesteps go at half the commanded speed; in their code the second goes
   at 0.5 units per step whatever the command.
 - Walls are the task's segments, which a robot keeps its radius from. Theirs are
   the arena's box, and in gate escape a gate whose whole opening a robot's centre
   may pass, overlapping the gate's edges.
+- Robots move in body order at every step; their scheduler (MASON's) shuffles
+  the order of agents at every step.
 
 The sidesteps rotate the displacement by a quarter turn, (dx, dy) to (-dy, dx),
 which is exact in floating point, and every test compares squared distances, so
