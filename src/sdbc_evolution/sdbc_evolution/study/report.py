@@ -402,10 +402,13 @@ def _physics_difference(config: ExperimentConfig) -> str:
         return (
             "- **Physics.** Our robots move as the authors' did (`evaluation.physics: "
             "kinematic`): turn, then move; a move that would overlap is refused and "
-            "retried sideways at half speed, and nobody pushes anybody. Two choices "
-            "of ours differ from their code: the first sidestep is always to the "
-            "left (theirs draws the side at random), and both sidesteps go at half "
-            "the commanded speed (their second at 0.5 units per step)."
+            "retried sideways at half speed, and nobody pushes anybody. Four details "
+            "differ from their code (docs/reference-setup.md): the first sidestep is "
+            "always to the left (theirs draws the side at random); both sidesteps go "
+            "at half the commanded speed (their second at 0.5 units per step); walls "
+            "are segments a robot keeps clear of (their gate lets a robot's centre "
+            "through its whole opening); and robots move in a fixed order (MASON "
+            "shuffles it every step)."
         )
     return (
         "- **Physics.** Our robots are pymunk bodies colliding through chipmunk's "
