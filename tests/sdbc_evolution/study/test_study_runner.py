@@ -372,3 +372,37 @@ def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
     )
     for a, b in zip(plan, study_plan(load_preset_file(preset), reference), strict=True):
         assert run_contents(a.path) == run_contents(b.path), a.name
+
+
+def test_on_dask_every_run_gets_its_own_treatments_characterisation(
+    tmp_path: Path,
+) -> None:
+    """Runs of one task share one cluster connection, yet each is evaluated with
+    its own treatment's characterisation: here Fit's run comes first and the
+    state-count treatment's second."""
+    from distributed import LocalCluster
+
+    preset = preset_from_dict(
+        {
+            **TINY,
+            "runs": 1,
+            "treatments": [
+                "fit",
+                {"name": "ns-state-count", "characterisation": "state_count"},
+            ],
+        }
+    )
+    one = straight_study(preset, tmp_path / "one")
+    dask = tmp_path / "dask"
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        outcome = run_study(
+            preset,
+            dask,
+            execution=Execution(scheduler=cluster.scheduler_address),
+            quiet=True,
+        )
+    assert not outcome.failed, outcome.failed[0].error
+    for a, b in zip(study_plan(preset, one), study_plan(preset, dask), strict=True):
+        assert run_contents(a.path) == run_contents(b.path)

@@ -502,17 +502,20 @@ def _run_in_process(
 def _run_dask(
     todo: list[tuple[RunSpec, int]], execution: Execution, progress: _Progress
 ) -> list[RunOutcome]:
-    # One cluster connection serves every run.
+    # One cluster connection serves every run, each evaluated with its own task
+    # spec: treatments differ in the characterisations the workers compute.
     with make_evaluator(
         task_spec(todo[0][0].config),
         scheduler=execution.scheduler,
         timeout=execution.connect_timeout,
     ) as evaluator:
+
+        def evaluator_for(spec: RunSpec) -> AbstractContextManager[Evaluator]:
+            evaluator.spec = task_spec(spec.config)
+            return contextlib.nullcontext(evaluator)
+
         return _run_one_by_one(
-            todo,
-            progress,
-            lambda spec: contextlib.nullcontext(evaluator),
-            _note(execution, evaluator.workers),
+            todo, progress, evaluator_for, _note(execution, evaluator.workers)
         )
 
 
