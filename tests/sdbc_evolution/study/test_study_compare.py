@@ -103,23 +103,36 @@ def test_bad_input_is_named(studies, tmp_path, capsys) -> None:
 STUDIES = Path(__file__).resolve().parents[3] / "docs" / "study"
 
 
+COMPARISONS = {
+    "local": ("local-v1", "the first local study,the second local study"),
+    "local_kinematic": (
+        "local",
+        "the second local study (rigid bodies),the kinematic local study",
+    ),
+}
+"""Committed comparison pages: the later study's folder -> (the earlier study's
+folder, the names the page gives the two)."""
+
+
+@pytest.mark.parametrize("later", sorted(COMPARISONS))
 def test_the_committed_comparison_is_current_and_explains_every_change(
-    tmp_path: Path, capsys
+    later: str, tmp_path: Path, capsys
 ) -> None:
-    """docs/study/local/comparison.md is what the command makes from the two
+    """docs/study/LATER/comparison.md is what the command makes from the two
     committed studies, and every changed verdict has its reason."""
+    earlier, names = COMPARISONS[later]
     out = tmp_path / "comparison.md"
     argv = [
         "compare",
-        str(STUDIES / "local-v1"),
-        str(STUDIES / "local"),
+        str(STUDIES / earlier),
+        str(STUDIES / later),
         "--names",
-        "the first local study,the second local study",
+        names,
         "--reasons",
-        str(STUDIES / "local" / "comparison-reasons.yaml"),
+        str(STUDIES / later / "comparison-reasons.yaml"),
         "--out",
         str(out),
     ]
     assert main(argv) == 0
     assert "not explained" not in capsys.readouterr().err
-    assert out.read_text() == (STUDIES / "local" / "comparison.md").read_text()
+    assert out.read_text() == (STUDIES / later / "comparison.md").read_text()
