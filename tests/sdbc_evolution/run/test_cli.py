@@ -64,6 +64,7 @@ def test_the_best_individual_is_rendered_to_a_gif(
         (["--population", "1"], "ga.population_size: Input should be greater than"),
         (["--generations", "0"], "generations: Input should be greater than"),
         (["--task", "gate_scape"], "unknown task 'gate_scape'"),
+        (["--physics", "soft"], "evaluation.physics: Input should be 'rigid' or"),
         (
             # Refused at once, not after the timeout.
             ["--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "600"],

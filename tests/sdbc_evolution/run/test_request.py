@@ -74,3 +74,12 @@ def test_a_run_folder_is_named_after_the_task_whatever_names_it() -> None:
     assert default_out(by_module).name.startswith("gate_escape-ns-sd+-seed3")
     elsewhere = ExperimentConfig(task="drone/fleet", generations=3)
     assert "/" not in default_out(elsewhere).name
+
+
+def test_the_physics_model_is_an_override_checked_as_the_file_would_be() -> None:
+    assert resolve_config(ConfigRequest(physics="kinematic")).evaluation.physics == (
+        "kinematic"
+    )
+    assert resolve_config(ConfigRequest()).evaluation.physics == "rigid"
+    with pytest.raises(ConfigError, match="evaluation.physics"):
+        resolve_config(ConfigRequest(physics="soft"))

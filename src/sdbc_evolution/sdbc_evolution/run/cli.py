@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import ConfigError, check_task_config
+from sdbc_evolution.run.config import PHYSICS_MODELS, ConfigError, check_task_config
 from sdbc_evolution.run.evaluators import (
     SchedulerLost,
     SchedulerUnreachable,
@@ -87,6 +87,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--generations", type=int, help="generations to run")
     parser.add_argument("--population", type=int, help="population size")
     parser.add_argument("--trials", type=int, help="trials per individual")
+    parser.add_argument(
+        "--physics",
+        metavar="|".join(PHYSICS_MODELS),
+        help="the engine's physics model: rigid (pymunk bodies, the default) or "
+        "kinematic (the authors' robots: a move that would overlap is refused and "
+        "retried sideways)",
+    )
     parser.add_argument("--seed", type=int, help="seed of the run")
     parser.add_argument(
         "--out", type=Path, help=f"output directory (default: {RESULTS_ROOT}/<name>)"
@@ -115,6 +122,7 @@ def config_request(args: argparse.Namespace) -> ConfigRequest:
         generations=args.generations,
         population=args.population,
         trials=args.trials,
+        physics=args.physics,
         seed=args.seed,
     )
 

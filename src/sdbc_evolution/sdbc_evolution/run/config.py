@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import yaml
 from pydantic import BeforeValidator
@@ -48,6 +48,10 @@ class ConfigError(SettingsError):
     """A configuration that cannot run; the message names the offending key."""
 
 
+PhysicsModel = Literal["rigid", "kinematic"]
+"""The engine's physics models (``sdbc_sim.physics.MODELS``, checked by a test)."""
+PHYSICS_MODELS: tuple[str, ...] = get_args(PhysicsModel)
+"""Their names, for command lines."""
 QUICKSTART_GENERATIONS = 40
 """Generations of the quick-start experiment."""
 QUICKSTART_POPULATION = 50
@@ -109,7 +113,7 @@ class EvaluationConfig:
     fitness_mean: Literal["harmonic", "arithmetic"] = "harmonic"
     """How a controller's fitness sums up its trials: "harmonic" (the authors'
     code; trials under 1e-4 count as 1e-4) or "arithmetic"."""
-    physics: Literal["rigid", "kinematic"] = "rigid"
+    physics: PhysicsModel = "rigid"
     """How robots move and meet (``sdbc_sim.physics.PhysicsSettings.model``):
     "rigid" (pymunk rigid bodies; contacts go through chipmunk's solver, so robots
     push each other and slide along walls) or "kinematic" (the authors' robots: a

@@ -38,12 +38,13 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from concurrent.futures import CancelledError, ProcessPoolExecutor
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 
 from sdbc_evolution.characterise.evaluation import SDBC, TASK, Evaluation
 from sdbc_evolution.characterise.registry import ALWAYS, CharacterisationSpec
+from sdbc_evolution.run.config import PhysicsModel
 from sdbc_evolution.run.processes import available_cores, worker_pool
 
 if TYPE_CHECKING:
@@ -75,7 +76,7 @@ class TaskSpec:
     name: str
     overrides: Mapping[str, Any] = field(default_factory=dict)
     fitness_mean: str = "harmonic"
-    physics: Literal["rigid", "kinematic"] = "rigid"
+    physics: PhysicsModel = "rigid"
     characterisations: tuple[CharacterisationSpec, ...] = ()
 
     def all_characterisations(self) -> tuple[CharacterisationSpec, ...]:

@@ -48,6 +48,7 @@ class ConfigRequest:
         generations: Generations to run.
         population: Population size.
         trials: Trials per individual.
+        physics: The engine's physics model (``evaluation.physics``).
         seed: Seed of the run.
         task_config: The task's settings, replacing the base's.
     """
@@ -60,6 +61,7 @@ class ConfigRequest:
     generations: int | None = None
     population: int | None = None
     trials: int | None = None
+    physics: str | None = None
     seed: int | None = None
     task_config: Mapping[str, Any] | None = None
 
@@ -96,6 +98,7 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
     for section, key, value in (
         ("ga", "population_size", request.population),
         ("evaluation", "trials", request.trials),
+        ("evaluation", "physics", request.physics),
     ):
         if value is None:
             continue
