@@ -39,3 +39,35 @@ def test_setting_up_a_batch_loads_every_loop() -> None:
         "print(len(loops) > 0, all(loop.kernel is not None for loop in loops))"
     )
     assert fresh(code) == "True True"
+
+
+def test_a_helper_edited_in_another_module_is_compiled_again(tmp_path) -> None:
+    """numba keeps a loop's cache while the loop's own file is unchanged, though
+    the cached loop holds its helpers' code: a helper of another module that was
+    edited must not go on running as it was."""
+    (tmp_path / "helper.py").write_text("def combine(a, b):\n    return a + b\n")
+    (tmp_path / "loop.py").write_text(
+        "from sdbc_sim.compiled import compiled\n"
+        "from helper import combine\n"
+        "@compiled('float64(float64, float64)', calls=(combine,))\n"
+        "def apply(a, b):\n"
+        "    return combine(a, b)\n"
+    )
+    run = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import loop; "
+        "print(loop.apply(3.0, 1.0))"
+    )
+
+    def fresh_run() -> str:
+        done = subprocess.run(
+            [sys.executable, "-c", run, str(tmp_path)],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        return done.stdout.strip()
+
+    assert fresh_run() == "4.0"
+    assert fresh_run() == "4.0"  # from the cache
+    (tmp_path / "helper.py").write_text("def combine(a, b):\n    return a - b\n")
+    assert fresh_run() == "2.0"

@@ -23,9 +23,12 @@ differ from the ones numba calls in the last bit.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import hashlib
 import types
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar, cast
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -52,17 +55,23 @@ class _Loop:
 
             fn = self.fn
             if self.calls:
-                # The loop sees the compiled helpers under their own names; the
-                # module keeps the plain functions.
-                scope = dict(fn.__globals__)
-                for helper in self.calls:
-                    scope[helper.__name__] = numba.njit(
-                        cache=True, error_model="numpy"
-                    )(helper)
-                fn = types.FunctionType(
-                    fn.__code__, scope, fn.__name__, fn.__defaults__, fn.__closure__
-                )
-                fn.__qualname__ = self.fn.__qualname__
+                # The loop and its helpers see the compiled helpers under their
+                # own names, so a helper may call another; the modules keep the
+                # plain functions. numba reads a function's globals when it
+                # compiles it, at the first call, after every scope is filled.
+                # Only the loop is cached on disk: it holds its helpers'
+                # compiled code, and _forget_if_changed keeps it current.
+                scopes: list[dict[str, Any]] = []
+                kernels = {
+                    helper.__name__: numba.njit(error_model="numpy")(
+                        _rebound(helper, scopes)
+                    )
+                    for helper in self.calls
+                }
+                fn = _rebound(fn, scopes)
+                for scope in scopes:
+                    scope.update(kernels)
+                _forget_if_changed(fn, self.calls)
             self.kernel = numba.njit(self.signature, cache=True, error_model="numpy")(
                 fn
             )
@@ -70,6 +79,48 @@ class _Loop:
 
     def __call__(self, *args: Any) -> Any:
         return (self.kernel or self.load())(*args)
+
+
+def _forget_if_changed(
+    fn: Callable[..., Any], helpers: tuple[Callable[..., Any], ...]
+) -> None:
+    """Empties numba's on-disk cache of the loop ``fn`` when its helpers' code
+    changed since it was cached. numba keeps a loop's cache while the loop's own
+    file is unchanged, and a cached loop holds its helpers' compiled code: a
+    helper edited in another module would otherwise go on running as it was."""
+    from numba.core.caching import FunctionCache
+
+    digest = hashlib.sha256()
+    for helper in helpers:
+        code = helper.__code__
+        digest.update(f"{helper.__module__}.{helper.__qualname__}".encode())
+        digest.update(code.co_code)
+        digest.update(repr((code.co_consts, code.co_names)).encode())
+    cache = FunctionCache(fn)
+    stamp = Path(cache.cache_path) / f"{fn.__module__}.{fn.__qualname__}.helpers"
+    fingerprint = digest.hexdigest()
+    try:
+        if stamp.read_text() == fingerprint:
+            return
+    except OSError:
+        pass
+    cache.flush()
+    # An unwritable cache: numba compiles anew in every process anyway.
+    with contextlib.suppress(OSError):
+        stamp.write_text(fingerprint)
+
+
+def _rebound(
+    fn: Callable[..., Any], scopes: list[dict[str, Any]]
+) -> Callable[..., Any]:
+    """``fn`` over a copy of its module's globals, which is added to ``scopes``."""
+    scope = dict(fn.__globals__)
+    scopes.append(scope)
+    copy = types.FunctionType(
+        fn.__code__, scope, fn.__name__, fn.__defaults__, fn.__closure__
+    )
+    copy.__qualname__ = fn.__qualname__
+    return copy
 
 
 _LOOPS: list[_Loop] = []
@@ -80,8 +131,9 @@ def compiled(
 ) -> Callable[[F], F]:
     """Marks ``fn`` as a loop compiled by numba with ``signature`` (nopython,
     cached on disk, numpy's error model), loaded by :func:`load`. ``calls`` are
-    plain functions (of any module) that the loop calls by name: they are
-    compiled with it, for the types it passes, so that loops can share one."""
+    plain functions (of any module) that the loop, or another of them, calls by
+    name: they are compiled with it, for the types it passes, so that loops can
+    share one."""
 
     def mark(fn: F) -> F:
         loop = _Loop(fn, signature, calls)
