@@ -42,6 +42,7 @@ from sdbc_sim.physics import (
     PhysicsSettings,
     task_geometry,
 )
+from sdbc_sim.sensors import segment_offset
 from sdbc_sim.task import Task
 
 SIDESTEP_SPEED = 0.5
@@ -62,24 +63,9 @@ def _blocked(
     overlap a wall or another colliding body of its trial with its centre at
     (x, y); touching is allowed."""
     r = radii[i]
-    for p in range(walls.shape[0]):
-        ax = walls[p, 0, 0]
-        ay = walls[p, 0, 1]
-        ex = walls[p, 1, 0] - ax
-        ey = walls[p, 1, 1] - ay
-        px = x - ax
-        py = y - ay
-        length2 = ex * ex + ey * ey
-        along = 0.0
-        if length2 > 0.0:
-            along = (px * ex + py * ey) / length2
-            if along < 0.0:
-                along = 0.0
-            elif along > 1.0:
-                along = 1.0
-        qx = px - along * ex
-        qy = py - along * ey
-        if qx * qx + qy * qy < r * r:
+    for q in range(walls.shape[0]):
+        ox, oy = segment_offset(x, y, walls, q)
+        if ox * ox + oy * oy < r * r:
             return True
     for j in range(radii.shape[0]):
         if j == i or not collides[first + j]:
@@ -95,7 +81,7 @@ def _blocked(
 @compiled.compiled(
     "void(float64[:, ::1], float64[:, ::1], float64[::1], float64[:, :, ::1], "
     "boolean[::1], intp, intp, intp, float64, float64)",
-    calls=(_blocked,),
+    calls=(_blocked, segment_offset),
 )
 def _move(
     state: np.ndarray,

@@ -291,6 +291,26 @@ def segment_offsets(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
     return w - s[..., None] * e
 
 
+def segment_offset(
+    x: float, y: float, segments: np.ndarray, q: int
+) -> tuple[float, float]:  # pragma: no cover - compiled into the loops that call it
+    """:func:`segment_offsets` for the point (x, y) and segment ``q`` of
+    ``segments`` (P, 2, 2), with the same operations in the same order (np.clip:
+    the max with 0 first, then the min with 1). Compiled into the loops that call
+    it."""
+    ax = segments[q, 0, 0]
+    ay = segments[q, 0, 1]
+    ex = segments[q, 1, 0] - ax
+    ey = segments[q, 1, 1] - ay
+    ee = ex * ex + ey * ey
+    wx = x - ax
+    wy = y - ay
+    s = (wx * ex + wy * ey) / ee if ee > 0.0 else 0.0
+    s = s if s > 0.0 else 0.0
+    s = s if s < 1.0 else 1.0
+    return wx - s * ex, wy - s * ey
+
+
 def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
     """Euclidean distance from points (..., 2) to segments (P, 2, 2): (..., P)."""
     d = segment_offsets(points, segments)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from sdbc_sim.compiled import compiled
+from sdbc_sim.sensors import segment_offset
 
 
 def project_apart(
@@ -68,7 +69,8 @@ def project_apart(
 
 @compiled(
     "float64[:, :, ::1](float64[:, :, ::1], boolean[:, ::1], float64[::1],"
-    " float64[:, :, ::1], float64, int64, boolean[:, ::1])"
+    " float64[:, :, ::1], float64, int64, boolean[:, ::1])",
+    calls=(segment_offset,),
 )
 def _project_apart(
     pos: np.ndarray,
@@ -125,19 +127,7 @@ def _project_apart(
                     wsx = 0.0
                     wsy = 0.0
                     for q in range(walls.shape[0]):
-                        ax = walls[q, 0, 0]
-                        ay = walls[q, 0, 1]
-                        ex = walls[q, 1, 0] - ax
-                        ey = walls[q, 1, 1] - ay
-                        ee = ex * ex + ey * ey
-                        wx = p[i, 0] - ax
-                        wy = p[i, 1] - ay
-                        s = (wx * ex + wy * ey) / ee if ee > 0.0 else 0.0
-                        # np.clip's order and ties: max with 0, then min with 1.
-                        s = s if s > 0.0 else 0.0
-                        s = s if s < 1.0 else 1.0
-                        ox = wx - s * ex
-                        oy = wy - s * ey
+                        ox, oy = segment_offset(p[i, 0], p[i, 1], walls, q)
                         dist = np.sqrt(ox * ox + oy * oy)
                         over_w = radii[i] - dist
                         kw = 0.0
