@@ -19,12 +19,15 @@ trials with random genomes (uniform in [-1, 1]):
 Robot-steps count every body of every trial for every step it took. The last lines
 read ``TASK robot-steps/s=N naive=Rx floor=F`` with R = engine / naive and
 F = engine / floor (the share of the engine's time spent in chipmunk and bulk
-transfer). ``--sweep 100,250,500`` also times the engine at each number of trials
-per Space (the setting's default comes from it).
+transfer). ``--physics NAME=VALUE`` sets a physics setting for engine, naive and
+floor alike. ``--sweep NAME=V1,V2,...`` also times the engine (best of
+``--repeat``) at each value of one physics setting, such as
+``trials_per_space=125,250,500`` or ``hash_cell=8,16,32,64``: the defaults of
+those settings come from it.
 
 Run: ``.venv/bin/python bench/engine.py`` (options: ``--task``, ``--genomes``,
 ``--trials``, ``--steps``, ``--naive-trials``, ``--sweep``, ``--repeat``,
-``--standalone-floor``, ``--seed``).
+``--standalone-floor``, ``--seed``, ``--physics``).
 """
 
 from __future__ import annotations
@@ -36,10 +39,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from common import add_batch_arguments, batch_arguments, physics_overrides
 from sdbc_sim.engine import BatchSimulation, EngineSettings
 from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
 from sdbc_sim.task import Task
-from sdbc_sim.tasks import available_tasks, make_task
+from sdbc_sim.tasks import make_task
 
 
 class PhysicsClock:
@@ -120,7 +124,9 @@ def measure(
             for _ in range(naive_trials):
                 if lone is None or lone.finished:
                     k = next(pick)
-                    lone = BatchSimulation(task, flat_s[k : k + 1], flat_g[k : k + 1])
+                    lone = BatchSimulation(
+                        task, flat_s[k : k + 1], flat_g[k : k + 1], settings
+                    )
                 lone.step()
                 naive_steps += 1
             naive_s += time.perf_counter() - t0
@@ -162,19 +168,32 @@ def standalone_floor_rate(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--task", action="append", help="task name (repeatable)")
-    parser.add_argument("--genomes", type=int, default=200)
-    parser.add_argument("--trials", type=int, default=10, help="trials per genome")
-    parser.add_argument("--steps", type=int, help="override the task's max_steps")
+    add_batch_arguments(parser, genomes=200, trials=10, seed=0)
     parser.add_argument("--naive-trials", type=int, default=20)
-    parser.add_argument("--sweep", help="comma-separated trials per Space to time")
+    parser.add_argument(
+        "--sweep",
+        metavar="NAME=V1,V2,...",
+        help="a physics setting and the values to time it at",
+    )
     parser.add_argument("--standalone-floor", action="store_true")
     parser.add_argument("--repeat", type=int, default=2, help="sweep repeats")
-    parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    names = args.task or sorted(available_tasks())
+    names, settings = batch_arguments(parser, args)
+    sweep: list[PhysicsSettings] = []
+    if args.sweep:
+        setting, sep, values = args.sweep.partition("=")
+        if not sep:
+            parser.error(f"--sweep: expected NAME=V1,V2,..., got {args.sweep!r}")
+        try:
+            sweep = [
+                dataclasses.replace(
+                    settings.physics, **physics_overrides([f"{setting}={value}"])
+                )
+                for value in values.split(",")
+            ]
+        except (ValueError, TypeError) as e:
+            parser.error(f"--sweep {args.sweep}: {e}")
     rng = np.random.default_rng(args.seed)
-    settings = EngineSettings()
     lines = []
     for name in names:
         task = make_task(name, **({"max_steps": args.steps} if args.steps else {}))
@@ -195,18 +214,17 @@ def main() -> None:
                     task, seeds, mean_steps, settings.physics, speed
                 )
                 print(f"  standalone floor, bodies at speed {speed}: {f:,.0f}")
-        if args.sweep:
+        if sweep:
             # Round robin, best of --repeat: other load on the machine only slows.
-            sizes = [int(v) for v in args.sweep.split(",")]
-            best = dict.fromkeys(sizes, (0.0, 0.0))
+            best = [(0.0, 0.0)] * len(sweep)
             for _ in range(args.repeat):
-                for k in sizes:
-                    physics = dataclasses.replace(settings.physics, trials_per_space=k)
+                for k, physics in enumerate(sweep):
                     m = measure(task, genomes, seeds, EngineSettings(physics), 0)
                     best[k] = max(best[k], (m.engine, m.floor))
-            for k in sizes:
-                rate, f = best[k]
-                print(f"  trials_per_space={k}: engine {rate:,.0f}, floor {f:,.0f}")
+            setting = args.sweep.partition("=")[0]
+            for physics, (rate, f) in zip(sweep, best, strict=True):
+                value = getattr(physics, setting)
+                print(f"  {setting}={value}: engine {rate:,.0f}, floor {f:,.0f}")
         lines.append(
             f"{name} robot-steps/s={engine:.0f} naive={engine / naive:.1f}x "
             f"floor={engine / floor:.2f}"

@@ -66,19 +66,31 @@ def same(a: list[tuple[np.ndarray, ...]], b: list[tuple[np.ndarray, ...]]) -> bo
     )
 
 
-@pytest.fixture(scope="module", params=MODELS)
+PHYSICS = {
+    **{model: {"model": model} for model in MODELS},
+    "rigid-small-cells": {"model": "rigid", "hash_cell": 8.0},
+}
+"""Physics the independence tests run under: every model with its defaults, and
+the rigid model with cells barely larger than a robot (the default before
+HASH_CELL_DIAMETERS), where a robot often covers several hash cells."""
+
+
+@pytest.fixture(scope="module", params=sorted(PHYSICS))
 def big_batch(request):
     """2000 trials (200 genomes x 10 seeds) of a crowded gate escape, with the
-    trajectories of four of them, under each physics model."""
-    model = request.param
+    trajectories of four of them, under each of ``PHYSICS``; the fixture gives
+    the physics as keyword arguments of PhysicsSettings."""
+    physics = PHYSICS[request.param]
     task = make_task("gate_escape", **CROWDED)
     rng = np.random.default_rng(42)
     genomes = rng.uniform(-1.0, 1.0, (200, task.genome_length))
     seeds = rng.integers(0, 2**40, (200, 10))
     picks = [(0, 0), (57, 3), (123, 9), (199, 9)]
     watch = Trajectories([g * 10 + t for g, t in picks])
-    result = run_batch(task, genomes, seeds, [watch], settings=model_settings(model))
-    return model, task, genomes, seeds, picks, watch, result
+    result = run_batch(
+        task, genomes, seeds, [watch], settings=model_settings(**physics)
+    )
+    return physics, task, genomes, seeds, picks, watch, result
 
 
 NEAR = {"rigid": 0.01, "kinematic": 1.0}
@@ -89,9 +101,9 @@ model refuses a move that would overlap, so they stop within a step (speed 1).""
 
 @pytest.mark.slow
 def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
-    model, task, genomes, seeds, picks, watch, result = big_batch
+    physics, task, genomes, seeds, picks, watch, result = big_batch
     # The batch is only a test of independence if robots did meet.
-    assert watch.closest < 2 * task.config.robot_radius + NEAR[model]
+    assert watch.closest < 2 * task.config.robot_radius + NEAR[physics["model"]]
     assert len(set(result.length.ravel().tolist())) > 1
     for k, (g, t) in enumerate(picks):
         alone = Trajectories([0])
@@ -100,7 +112,7 @@ def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
             genomes[g : g + 1],
             seeds[g : g + 1, t : t + 1],
             [alone],
-            settings=model_settings(model),
+            settings=model_settings(**physics),
         )
         assert r.fitness[0, 0] == result.fitness[g, t]
         assert np.array_equal(r.characterisation[0, 0], result.characterisation[g, t])
@@ -110,7 +122,7 @@ def test_a_trial_alone_equals_it_in_a_batch_of_2000(big_batch) -> None:
 
 @pytest.mark.slow
 def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
-    model, task, genomes, seeds, picks, _, result = big_batch
+    physics, task, genomes, seeds, picks, _, result = big_batch
     g, t = picks[1]
     rng = np.random.default_rng(3)
     others = rng.uniform(-1.0, 1.0, (30, task.genome_length))
@@ -118,7 +130,7 @@ def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
     mixed_s = rng.integers(0, 2**40, (31, 3))
     mixed_s[17, 2] = seeds[g, t]
     r = run_batch(
-        task, mixed_g, mixed_s, settings=model_settings(model, trials_per_space=8)
+        task, mixed_g, mixed_s, settings=model_settings(**physics, trials_per_space=8)
     )
     assert r.fitness[17, 2] == result.fitness[g, t]
     assert np.array_equal(r.characterisation[17, 2], result.characterisation[g, t])
@@ -127,7 +139,7 @@ def test_another_slot_and_space_give_the_same_trial(big_batch) -> None:
 
 @pytest.mark.slow
 def test_another_process_gives_the_same_trial(big_batch, tmp_path) -> None:
-    model, task, genomes, seeds, picks, _, result = big_batch
+    physics, task, genomes, seeds, picks, _, result = big_batch
     g, t = picks[2]
     genome_file = tmp_path / "genome.npy"
     np.save(genome_file, genomes[g])
@@ -139,7 +151,7 @@ def test_another_process_gives_the_same_trial(big_batch, tmp_path) -> None:
         "from sdbc_sim.tasks import make_task\n"
         f"task = make_task('gate_escape', **{CROWDED!r})\n"
         "g = np.load(sys.argv[1])[None]\n"
-        f"settings = EngineSettings(PhysicsSettings(model={model!r}))\n"
+        f"settings = EngineSettings(PhysicsSettings(**{physics!r}))\n"
         f"r = run_batch(task, g, np.array([[{int(seeds[g, t])}]]), settings=settings)\n"
         "print(r.fitness[0, 0].hex(), r.length[0, 0],"
         " *[v.hex() for v in r.characterisation[0, 0]])\n"

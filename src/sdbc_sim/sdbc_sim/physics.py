@@ -111,6 +111,22 @@ DRIVE_COLUMNS = {
 """Drive row layout per actuation mode."""
 _WORLD_ORIGIN = 2.0**16
 """Every slot lies in [2^16, 2^17): one float exponent for all world coordinates."""
+HASH_CELL_DIAMETERS = 8.0
+"""The default spatial hash cell, in largest body diameters (rounded up to a power
+of two). Chipmunk looks up a body's candidate contacts in every cell its bounding
+box covers, and the walls of all a Space's trials sit in one static hash: with
+cells barely larger than a robot (the default until 2026-12-02), a body covers up
+to four cells and a trial's walls a hundred, and the lookups in a table shared by
+hundreds of trials miss the cache. With cells a few robots wide, a body covers one
+cell most of the time; the few more candidates per cell cost less. Measured with
+``bench/profile.py --physics hash_cell=C`` on every task, C = 8 to 128: chipmunk's
+step fell as the cell grew to 64-128 (gate escape 720 to 360-420 ns per
+robot-step, aggregation 630 to 310-330, foraging 530 to 330-390, resource sharing
+and predator-prey 15-25 % less); 8 diameters (32 or 64 on the five tasks) takes
+most of that while a cell still holds only a few robots. The cell changes only the
+order in which chipmunk meets contacts: on ``bench/identity.py``'s batches the
+results equal the old cell's on four tasks, and differ in 4 of 120 predator-prey
+trials, in SDBC features, by 1e-11 relative."""
 _NO_CONTACT = pymunk.ShapeFilter(categories=0)
 ANCHOR_MASS_FACTOR = 1e6
 """An anchored body's mass (and moment) over its own: a body of the ordinary mass
@@ -138,8 +154,9 @@ class PhysicsSettings:
         trials_per_space: Most trials in one Space. Chipmunk's cost per body grows
             past a few hundred trials per Space (cache). The default is the best of
             ``bench/engine.py --task gate_escape --steps 300 --sweep
-            125,250,500,1000,2000 --repeat 3`` on a quiet 2-core machine (engine
-            robot-steps/s 0.98M, 0.96M, 1.01M, 0.99M, 0.96M: flat within 5 %).
+            trials_per_space=125,250,500,1000,2000 --repeat 3`` on a quiet 2-core
+            machine (engine robot-steps/s 0.98M, 0.96M, 1.01M, 0.99M, 0.96M: flat
+            within 5 %).
         dt: Physics time per control step; speeds are then in units per step.
         iterations: Contact solver iterations per step.
         overlap_tolerance: Largest overlap of two bodies, or of a body and a wall,
@@ -147,7 +164,7 @@ class PhysicsSettings:
         friction: Friction of bodies and walls; 0 lets a robot slide along a wall,
             like the authors' robots, which retry a blocked move sideways.
         hash_cell: Spatial hash cell size, a power of two; None picks the smallest
-            power of two at least the largest body diameter.
+            power of two at least ``HASH_CELL_DIAMETERS`` largest body diameters.
         hash_cells_per_trial: Hash table cells per trial of a Space.
         separation_iterations: Most projection passes per step in a trial with
             an overlap (see :func:`~sdbc_sim.separation.project_apart`).
@@ -540,7 +557,7 @@ class TrialSpaces:
         fields = pb.BodyFields.ANGLE | _MOTION[settings.actuation]
         self._fields = (fields, pb.BodyFields.POSITION | fields)
         diameter = 2.0 * float(np.max(radii))
-        cell = settings.hash_cell or _next_power_of_two(diameter)
+        cell = settings.hash_cell or _next_power_of_two(HASH_CELL_DIAMETERS * diameter)
         self.grid = SlotGrid.fit(extent, margin=diameter + cell, cell=cell)
         per_space = min(settings.trials_per_space, self.grid.capacity)
         self.live = np.arange(n_trials)
