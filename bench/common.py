@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+from typing import Any
 
 import numpy as np
 from sdbc_sim.engine import EngineSettings
@@ -37,11 +38,12 @@ def _parse_value(text: str) -> object:
     return text
 
 
-def physics_overrides(pairs: list[str] | None) -> dict[str, object]:
-    """``["hash_cell=32", ...]`` as PhysicsSettings keyword arguments; raises
-    ValueError naming a malformed pair or an unknown setting."""
+def physics_overrides(pairs: list[str] | None) -> dict[str, Any]:
+    """``["hash_cell=32", ...]`` as PhysicsSettings keyword arguments (typed Any:
+    PhysicsSettings checks each value itself); raises ValueError naming a
+    malformed pair or an unknown setting."""
     known = {f.name for f in dataclasses.fields(PhysicsSettings)}
-    out: dict[str, object] = {}
+    out: dict[str, Any] = {}
     for pair in pairs or ():
         name, sep, value = pair.partition("=")
         name = name.strip()
@@ -52,6 +54,18 @@ def physics_overrides(pairs: list[str] | None) -> dict[str, object]:
             raise ValueError(f"--physics: unknown setting {name!r}; known: {names}")
         out[name] = _parse_value(value.strip())
     return out
+
+
+def physics_sweep(base: PhysicsSettings, spec: str) -> list[PhysicsSettings]:
+    """``"NAME=V1,V2,..."`` as ``base`` with NAME set to each value in turn; raises
+    ValueError naming a malformed spec, an unknown setting or a bad value."""
+    name, sep, values = spec.partition("=")
+    if not sep or not values:
+        raise ValueError(f"--sweep: expected NAME=V1,V2,..., got {spec!r}")
+    return [
+        dataclasses.replace(base, **physics_overrides([f"{name}={value}"]))
+        for value in values.split(",")
+    ]
 
 
 def engine_settings(pairs: list[str] | None) -> EngineSettings:

@@ -33,13 +33,12 @@ Run: ``.venv/bin/python bench/engine.py`` (options: ``--task``, ``--genomes``,
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import itertools
 import time
 from dataclasses import dataclass
 
 import numpy as np
-from common import add_batch_arguments, batch_arguments, physics_overrides
+from common import add_batch_arguments, batch_arguments, physics_sweep
 from sdbc_sim.engine import BatchSimulation, EngineSettings
 from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
 from sdbc_sim.task import Task
@@ -181,18 +180,10 @@ def main() -> None:
     names, settings = batch_arguments(parser, args)
     sweep: list[PhysicsSettings] = []
     if args.sweep:
-        setting, sep, values = args.sweep.partition("=")
-        if not sep:
-            parser.error(f"--sweep: expected NAME=V1,V2,..., got {args.sweep!r}")
         try:
-            sweep = [
-                dataclasses.replace(
-                    settings.physics, **physics_overrides([f"{setting}={value}"])
-                )
-                for value in values.split(",")
-            ]
-        except (ValueError, TypeError) as e:
-            parser.error(f"--sweep {args.sweep}: {e}")
+            sweep = physics_sweep(settings.physics, args.sweep)
+        except ValueError as e:
+            parser.error(str(e))
     rng = np.random.default_rng(args.seed)
     lines = []
     for name in names:

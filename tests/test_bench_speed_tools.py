@@ -24,7 +24,7 @@ _spec.loader.exec_module(engine_profile)
 import common  # noqa: E402
 import identity  # noqa: E402
 from sdbc_sim.engine import BatchSimulation, EngineSettings  # noqa: E402
-from sdbc_sim.physics import TrialSpaces  # noqa: E402
+from sdbc_sim.physics import PhysicsSettings, TrialSpaces  # noqa: E402
 
 
 def test_identity_finds_a_one_bit_change(tmp_path: Path) -> None:
@@ -79,3 +79,16 @@ def test_physics_overrides() -> None:
         common.physics_overrides(["iterations"])
     with pytest.raises(ValueError, match="power of two"):
         common.engine_settings(["hash_cell=3"])
+
+
+def test_physics_sweep() -> None:
+    base = PhysicsSettings(iterations=4)
+    sweep = common.physics_sweep(base, "hash_cell=8,none,64")
+    assert [p.hash_cell for p in sweep] == [8, None, 64]
+    assert all(p.iterations == 4 for p in sweep)
+    with pytest.raises(ValueError, match="NAME=V1,V2"):
+        common.physics_sweep(base, "8,16")
+    with pytest.raises(ValueError, match="unknown setting 'cell'"):
+        common.physics_sweep(base, "cell=8")
+    with pytest.raises(ValueError, match="power of two"):
+        common.physics_sweep(base, "hash_cell=8,12")
