@@ -35,6 +35,13 @@ def test_bad_physics_settings_are_named() -> None:
         PhysicsSettings(dt=-1.0)
     with pytest.raises(ValueError, match="too large for one slot"):
         SlotGrid.fit((0.0, 0.0, 70000.0, 10.0), margin=1.0, cell=8.0)
+    # An arena that fits, with robots whose default cell does not: the message
+    # names the cell, which the caller can set smaller.
+    with pytest.raises(ValueError, match="hash cell of 32768.0.*smaller hash_cell"):
+        SlotGrid.fit(
+            (0.0, 0.0, 20000.0, 20000.0), margin=4000.0 + 32768.0, cell=32768.0
+        )
+    assert SlotGrid.fit((0.0, 0.0, 20000.0, 20000.0), 4000.0 + 4096.0, 4096.0).columns
 
 
 def test_random_controllers_never_sink_into_walls_or_each_other(pushing_crowd) -> None:

@@ -333,7 +333,12 @@ class SlotGrid:
         spacing = max(_next_power_of_two(side), cell)
         columns = int(_WORLD_ORIGIN // spacing)
         if columns < 1:
-            raise ValueError(f"physics: extent {extent} is too large for one slot")
+            raise ValueError(
+                f"physics: extent {extent} plus a margin of {margin} on each side "
+                f"(the largest body diameter and a hash cell of {cell}) is too large "
+                f"for one slot: a slot must fit in {_WORLD_ORIGIN:g}; a smaller "
+                "hash_cell, or smaller units, fits it"
+            )
         origin = np.array(
             [
                 cell * math.ceil((margin - x0) / cell),
