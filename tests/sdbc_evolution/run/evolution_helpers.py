@@ -3,7 +3,10 @@ comparisons. (Not a conftest: test directories below have their own.)"""
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
@@ -92,6 +95,19 @@ class ToyEvaluator(Evaluator):
                 "sdbc": sdbc.mean(axis=1),
             },
         )
+
+
+def edit_checkpoint_config(out: Path, edit: Callable[[dict[str, Any]], object]) -> None:
+    """Rewrites the checkpoint of the run in ``out`` with ``edit`` applied to the
+    run configuration it records, as another version of the code could have
+    written it."""
+    path = out / "checkpoint.npz"
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    meta = json.loads(str(arrays["meta"]))
+    edit(meta["config"])
+    arrays["meta"] = np.array(json.dumps(meta))
+    np.savez(path, **arrays)
 
 
 def snapshot(out: Path) -> dict[str, bytes]:

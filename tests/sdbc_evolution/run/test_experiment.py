@@ -4,13 +4,18 @@ checkpoints. (Runs on the real engine are in test_experiment_engine.py.)"""
 from __future__ import annotations
 
 import csv
-import json
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
-from evolution_helpers import TOY_INFO, ToyEvaluator, assert_same_run, snapshot
+from evolution_helpers import (
+    TOY_INFO,
+    ToyEvaluator,
+    assert_same_run,
+    edit_checkpoint_config,
+    snapshot,
+)
 from sdbc_evolution.ga.treatments import PAPER_TREATMENTS
 from sdbc_evolution.run import checkpoint as checkpoint_module
 from sdbc_evolution.run.checkpoint import CheckpointError
@@ -197,21 +202,13 @@ def test_a_checkpoint_from_before_a_setting_existed_resumes(tmp_path: Path) -> N
     # As if written before `weighting.update_every` was a setting: its default
     # (every generation) is what the run did, so the run goes on.
     run(small_config(generations=2), tmp_path)
-    path = tmp_path / "checkpoint.npz"
-    with np.load(path) as data:
-        arrays = {k: data[k] for k in data.files}
-    meta = json.loads(str(arrays["meta"]))
-    del meta["config"]["weighting"]["update_every"]
-    arrays["meta"] = np.array(json.dumps(meta))
-    np.savez(path, **arrays)
+    edit_checkpoint_config(tmp_path, lambda c: c["weighting"].pop("update_every"))
     experiment = Experiment.resume(
         small_config(generations=3), tmp_path, ToyEvaluator(), TOY_INFO
     )
     assert experiment.state.generation == 2
     experiment.close()
-    meta["config"]["weighting"]["update_every"] = 5
-    arrays["meta"] = np.array(json.dumps(meta))
-    np.savez(path, **arrays)
+    edit_checkpoint_config(tmp_path, lambda c: c["weighting"].update(update_every=5))
     with pytest.raises(CheckpointError, match="weighting.update_every: 5"):
         Experiment.resume(
             small_config(generations=3), tmp_path, ToyEvaluator(), TOY_INFO

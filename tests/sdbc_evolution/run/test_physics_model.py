@@ -4,14 +4,18 @@ held to on resume (a run from before the key existed was rigid)."""
 
 from __future__ import annotations
 
-import json
 import typing
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from evolution_helpers import TINY_RUN_YAML, TOY_INFO, ToyEvaluator
+from evolution_helpers import (
+    TINY_RUN_YAML,
+    TOY_INFO,
+    ToyEvaluator,
+    edit_checkpoint_config,
+)
 from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import (
     ConfigError,
@@ -173,13 +177,7 @@ def test_the_run_directory_keeps_the_model_and_resume_holds_to_it(
 def test_a_checkpoint_from_before_the_key_resumes_as_rigid(tmp_path: Path) -> None:
     with Experiment.create(toy(), tmp_path, ToyEvaluator(), TOY_INFO) as e:
         e.run()
-    path = tmp_path / "checkpoint.npz"
-    with np.load(path) as data:
-        arrays = {k: data[k] for k in data.files}
-    meta = json.loads(str(arrays["meta"]))
-    del meta["config"]["evaluation"]["physics"]
-    arrays["meta"] = np.array(json.dumps(meta))
-    np.savez(path, **arrays)
+    edit_checkpoint_config(tmp_path, lambda c: c["evaluation"].pop("physics"))
     # And the run's config.yaml as an older version wrote it.
     old = (tmp_path / "config.yaml").read_text().replace("  physics: rigid\n", "")
     assert "physics" not in old
