@@ -99,12 +99,15 @@ def engine_settings(physics_model: str) -> EngineSettings:
         ValueError: Not one of :data:`sdbc_sim.physics.MODELS`, naming the
             parameter and the allowed values.
     """
-    if physics_model not in MODELS:
+    try:
+        physics = PhysicsSettings(model=cast(Model, physics_model))
+    except ValueError:
+        # PhysicsSettings checks the model; the message names the parameter.
         raise ValueError(
             f"parameter physics_model: {physics_model!r} is not one of "
             f"{', '.join(MODELS)}"
-        )
-    return EngineSettings(physics=PhysicsSettings(model=cast(Model, physics_model)))
+        ) from None
+    return EngineSettings(physics=physics)
 
 
 class TrialAborted(RuntimeError):
