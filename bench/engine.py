@@ -11,7 +11,8 @@ trials with random genomes (uniform in [-1, 1]):
 - floor: the same Spaces stepped with bulk transfer only: the time the engine run
   itself spent reading the bodies in bulk and setting their drive and stepping
   chipmunk (same Spaces, same motion, same contacts), without sensors, network,
-  rules, contact projection or observers.
+  rules, contact projection or observers. With ``--physics model=kinematic``, the
+  time in the kinematic model's compiled loop instead.
 - ``--standalone-floor`` also steps fresh copies of the same Spaces with bulk
   transfer only, bodies at rest and bodies pushed at full speed along their
   headings (piling up on walls), as bounds on chipmunk's cost.
@@ -35,48 +36,50 @@ from __future__ import annotations
 import argparse
 import itertools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from common import add_batch_arguments, batch_arguments, physics_sweep
-from sdbc_sim.engine import BatchSimulation, EngineSettings
+from sdbc_sim.engine import PHYSICS_MODELS, BatchSimulation, EngineSettings
 from sdbc_sim.physics import READ_WIDTH, WRITE_WIDTH, PhysicsSettings, TrialSpaces
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import make_task
 
 
 class PhysicsClock:
-    """Times TrialSpaces.read and TrialSpaces.step (bulk transfer and chipmunk;
-    a step reads its Space back itself) while ``on``."""
+    """Times ``read`` and ``step`` of every physics model (bulk transfer and
+    chipmunk for the rigid model, the compiled loop for the kinematic one; a step
+    reads its state back itself) while ``on``."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
         self.on = False
-        self._saved = (TrialSpaces.read, TrialSpaces.step)
+        self._saved = {
+            cls: (cls.read, cls.step) for cls in set(PHYSICS_MODELS.values())
+        }
 
     def __enter__(self) -> PhysicsClock:
-        read, step = self._saved
-        clock = self
-
-        def timed_read(spaces: TrialSpaces, out: np.ndarray) -> None:
-            t0 = time.perf_counter()
-            read(spaces, out)
-            if clock.on:
-                clock.seconds += time.perf_counter() - t0
-
-        def timed_step(
-            spaces: TrialSpaces, drive: np.ndarray, state: np.ndarray
-        ) -> None:
-            t0 = time.perf_counter()
-            step(spaces, drive, state)
-            if clock.on:
-                clock.seconds += time.perf_counter() - t0
-
-        TrialSpaces.read, TrialSpaces.step = timed_read, timed_step
+        for cls, (read, step) in self._saved.items():
+            cls.read = self._timed(read)  # type: ignore[method-assign]
+            cls.step = self._timed(step)  # type: ignore[method-assign]
         return self
 
+    def _timed(self, method: Callable[..., None]) -> Callable[..., None]:
+        clock = self
+
+        def timed(*args: Any) -> None:
+            t0 = time.perf_counter()
+            method(*args)
+            if clock.on:
+                clock.seconds += time.perf_counter() - t0
+
+        return timed
+
     def __exit__(self, *exc: object) -> None:
-        TrialSpaces.read, TrialSpaces.step = self._saved
+        for cls, (read, step) in self._saved.items():
+            cls.read, cls.step = read, step  # type: ignore[method-assign]
 
 
 @dataclass

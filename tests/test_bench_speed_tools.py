@@ -22,9 +22,12 @@ sys.modules["bench_profile"] = engine_profile  # dataclasses look their module u
 _spec.loader.exec_module(engine_profile)
 
 import common  # noqa: E402
+import engine as engine_bench  # noqa: E402
 import identity  # noqa: E402
 from sdbc_sim.engine import BatchSimulation, EngineSettings  # noqa: E402
+from sdbc_sim.kinematic import KinematicTrials  # noqa: E402
 from sdbc_sim.physics import PhysicsSettings, TrialSpaces  # noqa: E402
+from sdbc_sim.tasks import make_task  # noqa: E402
 
 
 def test_identity_finds_a_one_bit_change(tmp_path: Path) -> None:
@@ -65,6 +68,21 @@ def test_profile_times_the_kinematic_step_in_place_of_chipmunk() -> None:
     assert p.calls["kinematic step"] == 21
     assert p.calls["chipmunk step"] == p.calls["bulk transfer"] == 0
     assert "chipmunk + bulk transfer" not in engine_profile.report(p)
+
+
+@pytest.mark.parametrize("model", ["rigid", "kinematic"])
+def test_engine_bench_floor_times_each_model(model: str) -> None:
+    saved = [(c.read, c.step) for c in (TrialSpaces, KinematicTrials)]
+    task = make_task("gate_escape", max_steps=10)
+    rng = np.random.default_rng(0)
+    genomes = rng.uniform(-1.0, 1.0, (2, task.genome_length))
+    seeds = rng.integers(0, 2**31, (2, 2))
+    settings = common.engine_settings([f"model={model}"])
+    rates = engine_bench.measure(task, genomes, seeds, settings, naive_trials=1)
+    assert rates.steps == 4 * 10
+    # The floor is a part of the engine's own time: never slower than it.
+    assert np.isfinite(rates.floor) and rates.floor >= rates.engine
+    assert [(c.read, c.step) for c in (TrialSpaces, KinematicTrials)] == saved
 
 
 def test_physics_overrides() -> None:
