@@ -138,6 +138,39 @@ def test_velocity_actuation_moves_a_robot_in_the_step_it_is_commanded(
     assert force[5] - force[4] == pytest.approx(1.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("actuation", ["velocity", "force"])
+def test_headings_are_kept_beside_chipmunk_through_steps_and_compaction(
+    actuation: str,
+) -> None:
+    task = make_task("gate_escape")
+    rng = np.random.default_rng(0)
+    _, position, angle = task.reset([np.random.default_rng(s) for s in range(5)])
+    spaces = TrialSpaces.of_task(
+        task, position, angle, PhysicsSettings(actuation=actuation, trials_per_space=2)
+    )
+    rows = np.empty((angle.size, 5))
+    spaces.read(rows)
+    np.testing.assert_array_equal(rows[:, 2], angle.reshape(-1))
+    drive = np.zeros((angle.size, 4))
+    col = spaces.drive_columns
+    for _ in range(3):
+        drive[:, col.angle] = rng.uniform(-np.pi, np.pi, angle.size)
+        spaces.step(drive, rows)
+        np.testing.assert_array_equal(rows[:, 2], drive[:, col.angle])
+    keep = np.array([True, False, True, True, False])
+    spaces.compact(keep)
+    kept = np.empty((int(keep.sum()) * angle.shape[1], 5))
+    spaces.read(kept)
+    np.testing.assert_array_equal(kept, rows.reshape(5, -1, 5)[keep].reshape(-1, 5))
+    # Chipmunk's bodies never turn: the heading is not its business.
+    assert all(
+        body.angle == 0.0
+        for sp in spaces.spaces
+        for bodies in sp.bodies.values()
+        for body in bodies
+    )
+
+
 def test_actuation_must_be_known() -> None:
     with pytest.raises(ValueError, match="actuation must be one of velocity, force"):
         PhysicsSettings(actuation="impulse")  # type: ignore[arg-type]

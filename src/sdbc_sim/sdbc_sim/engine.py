@@ -285,7 +285,8 @@ class BatchSimulation:
         turn = turn * moving
         np.divide(turn, dt, out=self._turn_rate)
         heading = self.bodies.angle + turn
-        # Chipmunk keeps the angle set here, so these serve the next sensors too.
+        # The physics keeps the heading set here as the state's angle, so these
+        # serve the next sensors too.
         np.cos(heading, out=self._cos)
         np.sin(heading, out=self._sin)
         v = (speed * moving).reshape(-1)

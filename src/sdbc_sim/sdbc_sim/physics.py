@@ -35,6 +35,14 @@ where one overlaps by more than ``overlap_tolerance`` the bodies are projected a
 chipmunk keeps the contact and its solver stops any further approach. The state the
 engine reports then has no overlap beyond the tolerance.
 
+Headings. Chipmunk never holds a robot's heading: its bodies keep angle 0, and
+:class:`TrialSpaces` keeps the headings the engine writes into the drive rows. A
+circle centred on its body collides and is solved the same at any body angle, and
+the engine turns bodies itself (the angular velocity it writes is 0, so chipmunk
+would only hand the heading back unchanged). A heading written to chipmunk cost a
+sine and cosine at the write and at every position update; the results are the
+same to the bit (``bench/identity.py`` on every task, both actuation modes).
+
 A finished trial's bodies are removed from its Space when the engine compacts;
 chipmunk then reorders its body list, so the mapping from a Space's body order to
 the engine's rows is read back (``BODY_ID``) after every compaction.
@@ -57,17 +65,21 @@ from sdbc_sim import compiled
 from sdbc_sim.separation import project_apart
 from sdbc_sim.task import Task
 
-_READ = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
+_READ = pb.BodyFields.POSITION | pb.BodyFields.VELOCITY
+"""Fields read back after every step: x, y, vx, vy (the heading is not chipmunk's,
+see :class:`TrialSpaces`)."""
 _MOTION = {
     "velocity": pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY,
     "force": pb.BodyFields.ANGULAR_VELOCITY | pb.BodyFields.FORCE,
 }
-"""Fields written before every step, besides the angle, per actuation mode.
-pymunk.batch keeps the fields in the order POSITION, ANGLE, VELOCITY,
-ANGULAR_VELOCITY, FORCE: a write row is the position (only after a projection),
-then the drive row as DRIVE_COLUMNS lays it out."""
+"""Fields written before every step, per actuation mode. pymunk.batch keeps the
+fields in the order POSITION, ANGLE, VELOCITY, ANGULAR_VELOCITY, FORCE: a write
+row is the position (only after a projection), then the drive row as DRIVE_COLUMNS
+lays it out, without its heading (column 0)."""
 _POSITION_WIDTH = 2
 """Columns of a position in a Space's write rows."""
+_MOTION_WIDTH = 3
+"""Columns of a drive row that chipmunk gets: all but the heading."""
 _IDS = pb.BodyFields.BODY_ID
 _CONTACT_IDS = (
     pb.ArbiterFields.BODY_A_ID
@@ -108,7 +120,8 @@ DRIVE_COLUMNS = {
     "velocity": DriveColumns(angle=0, angular_velocity=3, x=1, y=2),
     "force": DriveColumns(angle=0, angular_velocity=1, x=2, y=3),
 }
-"""Drive row layout per actuation mode."""
+"""Drive row layout per actuation mode: the heading first (the engine's own,
+never chipmunk's), then what chipmunk gets, in pymunk.batch's field order."""
 _WORLD_ORIGIN = 2.0**16
 """Every slot lies in [2^16, 2^17): one float exponent for all world coordinates."""
 HASH_CELL_DIAMETERS = 8.0
@@ -396,7 +409,7 @@ class _Space:
         self.read_buf = _buffer("read")
         # Write rows without and with the position (after a projection).
         self.write_bufs = (_buffer("write"), _buffer("write"))
-        self.writes = (np.zeros((0, WRITE_WIDTH)), np.zeros((0, WRITE_WIDTH)))
+        self.writes = (np.zeros((0, _MOTION_WIDTH)), np.zeros((0, _MOTION_WIDTH)))
         self.moved = False
         self.n_extra = 0
         self.contact_buf = _buffer("read")
@@ -415,16 +428,16 @@ class _Space:
 
     def attach_write(self) -> None:
         """Counts the Space's bodies (dynamic first, then static) and gives pymunk
-        zero-copy views of the write rows: (bodies, 4) drive rows, and (bodies, 2
-        + 4) with the position first. Static bodies are written too: their rows
-        keep the positions they have, and zero motion."""
+        zero-copy views of the write rows: (bodies, 3) drive rows without the
+        heading, and (bodies, 2 + 3) with the position first. Static bodies are
+        written too: their rows keep the positions they have, and zero motion."""
         self.read_buf.clear()
         pb.get_space_bodies(self.space, _IDS | pb.BodyFields.POSITION, self.read_buf)
         total = len(memoryview(self.read_buf.int_buf()).cast("P"))
         self.n_extra = total - self.n_dynamic
         positions = np.frombuffer(self.read_buf.float_buf(), dtype=np.float64)
-        still = np.zeros((total, WRITE_WIDTH))
-        moved = np.zeros((total, _POSITION_WIDTH + WRITE_WIDTH))
+        still = np.zeros((total, _MOTION_WIDTH))
+        moved = np.zeros((total, _POSITION_WIDTH + _MOTION_WIDTH))
         moved[:, :_POSITION_WIDTH] = positions.reshape(total, _POSITION_WIDTH)
         self.writes = (still, moved)
         for buf, rows in zip(self.write_bufs, self.writes, strict=True):
@@ -559,8 +572,9 @@ class TrialSpaces:
         compiled.load()
         n_trials, n_bodies = angle.shape
         self.n_bodies = n_bodies
-        fields = pb.BodyFields.ANGLE | _MOTION[settings.actuation]
+        fields = _MOTION[settings.actuation]
         self._fields = (fields, pb.BodyFields.POSITION | fields)
+        self._angle = np.array(angle, dtype=np.float64).reshape(-1)
         diameter = 2.0 * float(np.max(radii))
         cell = settings.hash_cell or _next_power_of_two(HASH_CELL_DIAMETERS * diameter)
         self.grid = SlotGrid.fit(extent, margin=diameter + cell, cell=cell)
@@ -622,7 +636,6 @@ class TrialSpaces:
             for i, moment in enumerate(moments):
                 body = pymunk.Body(mass, moment)
                 body.position = tuple(offsets[b] + position[b, i])
-                body.angle = float(angle[b, i])
                 bodies.append(body)
         robots: list[pymunk.Body | pymunk.Shape] = [
             body for b in ids for body in sp.bodies[b]
@@ -686,19 +699,19 @@ class TrialSpaces:
         trial-local."""
         for sp, rows in self._ranges:
             self._read_space(sp, rows, out)
+        out[:, 2] = self._angle
 
     def _read_space(self, sp: _Space, rows: slice, out: np.ndarray) -> None:
-        """The rows of one Space, as :meth:`read` fills them."""
+        """x, y, vx, vy of one Space's rows, as :meth:`read` fills them."""
         sp.read_buf.clear()
         pb.get_space_bodies(sp.space, _READ, sp.read_buf)
         data = np.frombuffer(sp.read_buf.float_buf(), dtype=np.float64)
-        data = data.reshape(-1, READ_WIDTH)[: rows.stop - rows.start]
-        block = out[rows]
-        if sp.perm is None:
-            np.copyto(block, data)
-        else:
-            np.take(data, sp.perm, axis=0, out=block)
-        block[:, 0:2] -= self._offsets[rows]
+        data = data.reshape(-1, _POSITION_WIDTH + 2)[: rows.stop - rows.start]
+        if sp.perm is not None:
+            data = data[sp.perm]
+        out[rows, 0:2] = data[:, 0:2]
+        out[rows, 0:2] -= self._offsets[rows]
+        out[rows, 3:5] = data[:, 2:4]
 
     def separate(
         self, out: np.ndarray, enabled: np.ndarray, anchored: np.ndarray | None = None
@@ -747,11 +760,12 @@ class TrialSpaces:
     def step(self, drive: np.ndarray, state: np.ndarray) -> None:
         """Steps every Space once and reads it back into ``state``.
 
-        Before its step, every body gets its angle, angular velocity and velocity
-        or force from ``drive`` (rows, 4, as :attr:`drive_columns` lays them
-        out). (Its angular velocity stays 0: a turn written as one and integrated
-        by chipmunk would give the same heading, but enter the contact solver's
-        arithmetic and change results in the last bits.) In a Space where
+        Before its step, every body gets its angular velocity and velocity or
+        force from ``drive`` (rows, 4, as :attr:`drive_columns` lays them out);
+        the heading in it becomes the state's angle. (The angular velocity stays
+        0: a turn written as one and integrated by chipmunk would give the same
+        heading, but enter the contact solver's arithmetic and change results in
+        the last bits.) In a Space where
         :meth:`separate` moved a body, every body also gets its position from
         ``state`` (rows, 5): the projection reaches pymunk here, in bulk
         (trial-local plus offset gives back the same world coordinate, so a body
@@ -762,19 +776,22 @@ class TrialSpaces:
         dt = self.settings.dt
         offsets = self._offsets
         p = _POSITION_WIDTH
+        motion = drive[:, 1:]
         for sp, rows in self._ranges:
             at = slice(0, rows.stop - rows.start) if sp.perm is None else sp.perm
             moved = int(sp.moved)
             write = sp.writes[moved]
             if moved:
                 write[at, :p] = state[rows, 0:2] + offsets[rows]
-                write[at, p:] = drive[rows]
+                write[at, p:] = motion[rows]
             else:
-                write[at] = drive[rows]
+                write[at] = motion[rows]
             pb.set_space_bodies(sp.space, self._fields[moved], sp.write_bufs[moved])
             sp.moved = False
             sp.space.step(dt)
             self._read_space(sp, rows, state)
+        self._angle[:] = drive[:, 0]
+        state[:, 2] = self._angle
 
     def anchor(self, trials: np.ndarray, bodies: np.ndarray, on: np.ndarray) -> None:
         """Makes bodies ``ANCHOR_MASS_FACTOR`` times heavier (``on`` True) or
@@ -819,4 +836,5 @@ class TrialSpaces:
         rows = np.repeat(keep, self.n_bodies)
         self._offsets = self._offsets[rows]
         self._masses = self._masses[rows]
+        self._angle = self._angle[rows]
         self._index_spaces()
