@@ -124,22 +124,30 @@ DRIVE_COLUMNS = {
 never chipmunk's), then what chipmunk gets, in pymunk.batch's field order."""
 _WORLD_ORIGIN = 2.0**16
 """Every slot lies in [2^16, 2^17): one float exponent for all world coordinates."""
-HASH_CELL_DIAMETERS = 8.0
-"""The default spatial hash cell, in largest body diameters (rounded up to a power
-of two). Chipmunk looks up a body's candidate contacts in every cell its bounding
-box covers, and the walls of all a Space's trials sit in one static hash: with
-cells barely larger than a robot (the default until 2026-12-02), a body covers up
-to four cells and a trial's walls a hundred, and the lookups in a table shared by
-hundreds of trials miss the cache. With cells a few robots wide, a body covers one
-cell most of the time; the few more candidates per cell cost less. Measured with
-``bench/profile.py --physics hash_cell=C`` on every task, C = 8 to 128: chipmunk's
-step fell as the cell grew to 64-128 (gate escape 720 to 360-420 ns per
-robot-step, aggregation 630 to 310-330, foraging 530 to 330-390, resource sharing
-and predator-prey 15-25 % less); 8 diameters (32 or 64 on the five tasks) takes
-most of that while a cell still holds only a few robots. The cell changes only the
-order in which chipmunk meets contacts: on ``bench/identity.py``'s batches the
-results equal the old cell's on four tasks, and differ in 4 of 120 predator-prey
-trials, in SDBC features, by 1e-11 relative."""
+HASH_CELL_DIAMETERS = 32.0
+"""The default spatial hash cell, in largest body diameters, rounded up to a power
+of two (128 in predator-prey, 256 in the other four tasks).
+
+Chipmunk looks up a body's candidate contacts in every cell its bounding box
+covers, in hash tables shared by all a Space's trials (the walls in a static one).
+A cell's bin sits at a hash of its coordinates, so neighbouring cells lie far
+apart in the table, and most of a lookup's time is the load of a bin the cache
+does not hold (``perf annotate`` of ``cpSpaceHashQuery``). The wider the cell, the
+fewer distinct cells a trial's robots and walls fall in, and the more often the
+next lookup finds its bin cached; the few more robots and walls per cell cost
+less to test.
+
+History: one diameter until 2026-12-02 (a trial's walls filled about a hundred
+cells, a robot up to four), then 8, then 32. ``bench/engine.py --sweep
+hash_cell=...`` (best of 3 and of 5, the same session) had the walled tasks fastest
+at 256, against 64: gate escape +17-36 %, aggregation +8-9 %, foraging +14 %;
+resource sharing and predator-prey, which have no walls, within the noise from 32
+to 256. ``bench/versions.py`` against 8 diameters: gate escape 1.09, aggregation
+1.07, predator-prey 1.01, foraging 1.00, resource sharing 0.98 (7 alternations;
+5 for the others). The cell changes only the order in which chipmunk meets
+contacts: on ``bench/identity.py``'s batches each change gave the same results on
+four tasks and, in predator-prey, SDBC features off in the last bits in a few
+trials (4 of 120 trials by 1e-11 relative at 8 diameters, 1 by 1.5e-12 at 32)."""
 _NO_CONTACT = pymunk.ShapeFilter(categories=0)
 ANCHOR_MASS_FACTOR = 1e6
 """An anchored body's mass (and moment) over its own: a body of the ordinary mass
