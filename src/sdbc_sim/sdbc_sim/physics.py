@@ -549,6 +549,68 @@ def _write_projection(
                 moved[row] = True
 
 
+_IN_ORDER = np.zeros(0, dtype=np.intp)
+"""The permutation argument of the loops below for a Space whose body order is
+the rows' order."""
+
+
+@compiled.compiled(
+    "void(float64[:, ::1], intp[::1], float64[:, ::1], intp, float64[:, ::1])"
+)
+def _rows_from_space(
+    data: np.ndarray,
+    perm: np.ndarray,
+    offsets: np.ndarray,
+    first_row: int,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through TrialSpaces.read
+    """Copies one Space's bodies (``data``: x, y, vx, vy in the Space's order)
+    into state rows ``out`` from ``first_row`` on: row k is body ``perm[k]``
+    (body k when ``perm`` is empty), x and y made trial-local.
+
+    A compiled loop (:mod:`sdbc_sim.compiled`): as numpy, the two-column strided
+    copies cost twice what pymunk's read itself did."""
+    permuted = perm.shape[0] > 0
+    for k in range(data.shape[0]):
+        src = perm[k] if permuted else k
+        row = first_row + k
+        out[row, 0] = data[src, 0] - offsets[row, 0]
+        out[row, 1] = data[src, 1] - offsets[row, 1]
+        out[row, 3] = data[src, 2]
+        out[row, 4] = data[src, 3]
+
+
+@compiled.compiled(
+    "void(float64[:, ::1], float64[:, ::1], float64[:, ::1], intp, intp[::1], "
+    "boolean, float64[:, ::1])"
+)
+def _rows_to_space(
+    state: np.ndarray,
+    drive: np.ndarray,
+    offsets: np.ndarray,
+    first_row: int,
+    perm: np.ndarray,
+    with_position: bool,
+    write: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through TrialSpaces.step
+    """Fills one Space's write rows (its first bodies, in its order) from the
+    rows ``first_row`` on: body ``perm[k]`` (body k when ``perm`` is empty) gets
+    row k's drive without its heading, after its world position when
+    ``with_position``. The inverse of :func:`_rows_from_space`'s ordering."""
+    permuted = perm.shape[0] > 0
+    motion = drive.shape[1] - 1
+    for k in range(write.shape[0]):
+        dst = perm[k] if permuted else k
+        row = first_row + k
+        c = 0
+        if with_position:
+            write[dst, 0] = state[row, 0] + offsets[row, 0]
+            write[dst, 1] = state[row, 1] + offsets[row, 1]
+            c = _POSITION_WIDTH
+        for j in range(motion):
+            write[dst, c + j] = drive[row, 1 + j]
+
+
 class TrialSpaces:
     """All trials of a batch in pymunk, read and driven in bulk.
 
@@ -715,11 +777,8 @@ class TrialSpaces:
         pb.get_space_bodies(sp.space, _READ, sp.read_buf)
         data = np.frombuffer(sp.read_buf.float_buf(), dtype=np.float64)
         data = data.reshape(-1, _POSITION_WIDTH + 2)[: rows.stop - rows.start]
-        if sp.perm is not None:
-            data = data[sp.perm]
-        out[rows, 0:2] = data[:, 0:2]
-        out[rows, 0:2] -= self._offsets[rows]
-        out[rows, 3:5] = data[:, 2:4]
+        perm = _IN_ORDER if sp.perm is None else sp.perm
+        _rows_from_space(data, perm, self._offsets, rows.start, out)
 
     def separate(
         self, out: np.ndarray, enabled: np.ndarray, anchored: np.ndarray | None = None
@@ -782,18 +841,13 @@ class TrialSpaces:
         :meth:`read` does.
         """
         dt = self.settings.dt
-        offsets = self._offsets
-        p = _POSITION_WIDTH
-        motion = drive[:, 1:]
         for sp, rows in self._ranges:
-            at = slice(0, rows.stop - rows.start) if sp.perm is None else sp.perm
             moved = int(sp.moved)
-            write = sp.writes[moved]
-            if moved:
-                write[at, :p] = state[rows, 0:2] + offsets[rows]
-                write[at, p:] = motion[rows]
-            else:
-                write[at] = motion[rows]
+            write = sp.writes[moved][: rows.stop - rows.start]
+            perm = _IN_ORDER if sp.perm is None else sp.perm
+            _rows_to_space(
+                state, drive, self._offsets, rows.start, perm, sp.moved, write
+            )
             pb.set_space_bodies(sp.space, self._fields[moved], sp.write_bufs[moved])
             sp.moved = False
             sp.space.step(dt)
