@@ -20,6 +20,7 @@ from evolution_helpers import TINY_RUN_YAML
 from sdbc_evolution.run.evaluators import (
     DaskEvaluator,
     LocalEvaluator,
+    SchedulerLost,
     SchedulerUnreachable,
     TaskInfo,
     TaskSpec,
@@ -134,6 +135,63 @@ def test_a_cluster_without_workers_is_an_error_after_the_timeout() -> None:
         f"2 s, --connect-timeout): start some with `dask worker "
         f"{cluster.scheduler_address}`"
     )
+
+
+def test_a_scheduler_gone_between_generations_is_a_lost_scheduler() -> None:
+    # The end-to-end test below kills the scheduler at a random point; now and
+    # then it dies before the next generation asks for the workers' threads,
+    # and that call's reset connection must read as a lost scheduler too.
+    class ResetClient:
+        status = "running"
+
+        def nthreads(self) -> dict[str, int]:
+            raise ConnectionResetError(104, "Connection reset by peer")
+
+    evaluator = DaskEvaluator.__new__(DaskEvaluator)
+    evaluator.spec, evaluator.address, evaluator.timeout = SPEC, "tcp://x:1", 1.0
+    evaluator._client = ResetClient()
+    genomes = np.zeros((2, 10))
+    with pytest.raises(SchedulerLost, match=r"tcp://x:1' \(ConnectionResetError\)"):
+        evaluator.evaluate(genomes, np.zeros((2, 1), dtype=np.int64))
+
+
+class _Done:
+    def done(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("listening", [False, True])
+def test_a_reset_gather_is_a_lost_scheduler_only_if_its_port_is_closed(
+    listening: bool,
+) -> None:
+    # gather can meet the reset connection before the client's status says the
+    # scheduler is gone; an OSError while the scheduler still listens is the
+    # task's own and passes through.
+    class ResetClient:
+        status = "running"
+
+        def nthreads(self) -> dict[str, int]:
+            return {"w": 1}
+
+        def submit(self, *args: object, **kwargs: object) -> _Done:
+            return _Done()
+
+        def gather(self, futures: object) -> list[object]:
+            raise ConnectionResetError(104, "Connection reset by peer")
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        if listening:
+            server.listen()
+        address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        evaluator = DaskEvaluator.__new__(DaskEvaluator)
+        evaluator.spec, evaluator.address, evaluator.timeout = SPEC, address, 1.0
+        evaluator._client = ResetClient()
+        batch = (np.zeros((2, 10)), np.zeros((2, 1), dtype=np.int64))
+        expected = ConnectionResetError if listening else SchedulerLost
+        with pytest.raises(expected) as raised:
+            evaluator.evaluate(*batch)
+        assert type(raised.value) is expected
 
 
 def test_a_scheduler_lost_mid_run_is_one_line_saying_resume_continues(

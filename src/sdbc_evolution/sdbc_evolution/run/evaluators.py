@@ -420,7 +420,12 @@ class DaskEvaluator(Evaluator):
 
     @property
     def workers(self) -> int:
-        threads = self._client.nthreads()
+        try:
+            threads = self._client.nthreads()
+        except OSError as error:
+            # Asked at the start of every generation: a scheduler that died
+            # between two shows here, as a reset or closed connection.
+            self._lost(type(error).__name__)
         return max(1, sum(threads.values()))
 
     def _run(
@@ -436,8 +441,15 @@ class DaskEvaluator(Evaluator):
         try:
             return self._client.gather(futures)
         except (OSError, CancelledError) as error:
-            # CommClosedError is an OSError; a lost scheduler cancels futures.
-            if self._client.status == "running" and isinstance(error, OSError):
+            # CommClosedError is an OSError; a lost scheduler cancels futures. A
+            # task's own OSError comes through gather too, while the scheduler
+            # still listens; a reset connection can arrive before the client has
+            # noticed that the scheduler is gone, so the port is asked.
+            if (
+                isinstance(error, OSError)
+                and self._client.status == "running"
+                and _refuses(self.address, self.timeout) is None
+            ):
                 raise
             self._lost(type(error).__name__)
             raise  # not reached: _lost raises
