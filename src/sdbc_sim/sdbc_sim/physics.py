@@ -78,8 +78,8 @@ row is the position (only after a projection), then the drive row as DRIVE_COLUM
 lays it out, without its heading (column 0)."""
 _POSITION_WIDTH = 2
 """Columns of a position in a Space's write rows."""
-_MOTION_WIDTH = 3
-"""Columns of a drive row that chipmunk gets: all but the heading."""
+_SPACE_READ_WIDTH = 4
+"""Columns pymunk fills per body for ``_READ``: x, y, vx, vy."""
 _IDS = pb.BodyFields.BODY_ID
 _CONTACT_IDS = (
     pb.ArbiterFields.BODY_A_ID
@@ -91,6 +91,11 @@ READ_WIDTH = 5
 """Columns of a state row: x, y, angle, vx, vy."""
 WRITE_WIDTH = 4
 """Columns of a drive row: angle, angular velocity and a vector (velocity or force)."""
+_MOTION_WIDTH = WRITE_WIDTH - 1
+"""Columns of a drive row that chipmunk gets: all but the heading."""
+_IN_ORDER = np.zeros(0, dtype=np.intp)
+"""A Space's ``perm`` when its body order is the rows' order (the compiled copies
+then index rows directly)."""
 ACTUATIONS = ("velocity", "force")
 """How the commanded motion reaches chipmunk (:class:`PhysicsSettings`)."""
 Actuation = Literal["velocity", "force"]
@@ -413,7 +418,7 @@ class _Space:
         self.trial_ids = trial_ids
         self.bodies: dict[int, list[pymunk.Body]] = {}
         self.shapes: dict[int, list[pymunk.Circle]] = {}
-        self.perm: np.ndarray | None = None
+        self.perm = _IN_ORDER
         self.read_buf = _buffer("read")
         # Write rows without and with the position (after a projection).
         self.write_bufs = (_buffer("write"), _buffer("write"))
@@ -466,7 +471,8 @@ class _Space:
         in_space = in_space[: self.n_dynamic]
         perm = np.empty(len(in_space), dtype=np.intp)
         perm[[row_of[i] for i in in_space]] = np.arange(len(in_space))
-        self.perm = None if np.array_equal(perm, np.arange(len(in_space))) else perm
+        in_order = np.array_equal(perm, np.arange(len(in_space)))
+        self.perm = _IN_ORDER if in_order else perm
 
     def mark_deep(
         self, tolerance: float, first_row: int, n_bodies: int, deep: np.ndarray
@@ -547,11 +553,6 @@ def _write_projection(
                 out[row, 0] = (x + offsets[row, 0]) - offsets[row, 0]
                 out[row, 1] = (y + offsets[row, 1]) - offsets[row, 1]
                 moved[row] = True
-
-
-_IN_ORDER = np.zeros(0, dtype=np.intp)
-"""The permutation argument of the loops below for a Space whose body order is
-the rows' order."""
 
 
 @compiled.compiled(
@@ -776,9 +777,8 @@ class TrialSpaces:
         sp.read_buf.clear()
         pb.get_space_bodies(sp.space, _READ, sp.read_buf)
         data = np.frombuffer(sp.read_buf.float_buf(), dtype=np.float64)
-        data = data.reshape(-1, _POSITION_WIDTH + 2)[: rows.stop - rows.start]
-        perm = _IN_ORDER if sp.perm is None else sp.perm
-        _rows_from_space(data, perm, self._offsets, rows.start, out)
+        data = data.reshape(-1, _SPACE_READ_WIDTH)[: rows.stop - rows.start]
+        _rows_from_space(data, sp.perm, self._offsets, rows.start, out)
 
     def separate(
         self, out: np.ndarray, enabled: np.ndarray, anchored: np.ndarray | None = None
@@ -844,9 +844,8 @@ class TrialSpaces:
         for sp, rows in self._ranges:
             moved = int(sp.moved)
             write = sp.writes[moved][: rows.stop - rows.start]
-            perm = _IN_ORDER if sp.perm is None else sp.perm
             _rows_to_space(
-                state, drive, self._offsets, rows.start, perm, sp.moved, write
+                state, drive, self._offsets, rows.start, sp.perm, sp.moved, write
             )
             pb.set_space_bodies(sp.space, self._fields[moved], sp.write_bufs[moved])
             sp.moved = False
