@@ -137,6 +137,19 @@ def test_a_cluster_without_workers_is_an_error_after_the_timeout() -> None:
     )
 
 
+def _evaluator_on(client: object, address: str) -> DaskEvaluator:
+    """A DaskEvaluator of ``SPEC`` whose Dask client is ``client``, as if
+    connected to ``address`` (no cluster needed)."""
+    evaluator = DaskEvaluator.__new__(DaskEvaluator)
+    evaluator.spec, evaluator.address, evaluator.timeout = SPEC, address, 1.0
+    evaluator._client = client
+    return evaluator
+
+
+BATCH = (np.zeros((2, 10)), np.zeros((2, 1), dtype=np.int64))
+"""Genomes and seeds for an evaluator whose client fails before any evaluation."""
+
+
 def test_a_scheduler_gone_between_generations_is_a_lost_scheduler() -> None:
     # The end-to-end test below kills the scheduler at a random point; now and
     # then it dies before the next generation asks for the workers' threads,
@@ -147,12 +160,9 @@ def test_a_scheduler_gone_between_generations_is_a_lost_scheduler() -> None:
         def nthreads(self) -> dict[str, int]:
             raise ConnectionResetError(104, "Connection reset by peer")
 
-    evaluator = DaskEvaluator.__new__(DaskEvaluator)
-    evaluator.spec, evaluator.address, evaluator.timeout = SPEC, "tcp://x:1", 1.0
-    evaluator._client = ResetClient()
-    genomes = np.zeros((2, 10))
+    evaluator = _evaluator_on(ResetClient(), "tcp://x:1")
     with pytest.raises(SchedulerLost, match=r"tcp://x:1' \(ConnectionResetError\)"):
-        evaluator.evaluate(genomes, np.zeros((2, 1), dtype=np.int64))
+        evaluator.evaluate(*BATCH)
 
 
 class _Done:
@@ -184,13 +194,10 @@ def test_a_reset_gather_is_a_lost_scheduler_only_if_its_port_is_closed(
         if listening:
             server.listen()
         address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
-        evaluator = DaskEvaluator.__new__(DaskEvaluator)
-        evaluator.spec, evaluator.address, evaluator.timeout = SPEC, address, 1.0
-        evaluator._client = ResetClient()
-        batch = (np.zeros((2, 10)), np.zeros((2, 1), dtype=np.int64))
+        evaluator = _evaluator_on(ResetClient(), address)
         expected = ConnectionResetError if listening else SchedulerLost
         with pytest.raises(expected) as raised:
-            evaluator.evaluate(*batch)
+            evaluator.evaluate(*BATCH)
         assert type(raised.value) is expected
 
 
