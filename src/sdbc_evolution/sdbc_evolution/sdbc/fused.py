@@ -83,10 +83,35 @@ def mean_state_totals(
             out[a, b] = total
 
 
+def batch_row(array: np.ndarray, slot: int, spare: np.ndarray) -> np.ndarray:
+    """Row ``slot`` of an (S, B|1) array as B values: the row itself, or its one
+    value copied into ``spare`` (B,) when the array is shared by every trial. The
+    loops below then run over plain contiguous rows, which the compiler turns into
+    vector instructions (each trial's operations stay the same and in order)."""
+    if array.shape[1] == spare.shape[0]:
+        return array[slot]
+    spare[:] = array[slot, 0]
+    return spare
+
+
+def add_term(
+    out: np.ndarray, b: int, first: bool, d: float, absent1: bool, absent2: bool
+) -> None:
+    """Adds one pair's f_D, ``d`` less the radii, to trial ``b``'s total: floored
+    at 0 (``np.maximum``: a NaN stays), 0 for a pair with an absent entity, and
+    the first term stored rather than added, as ``features._slot_sum`` does."""
+    if d < 0.0:
+        d = 0.0
+    if absent1 or absent2:
+        d = 0.0
+    out[b] = d if first else out[b] + d
+
+
 @compiled(
-    "void(float64[:, :], float64[:, :], float64[:, :], boolean[:, :], "
-    "float64[:, :], float64[:, :], float64[:, :], boolean[:, :], "
-    "int64[::1], int64[::1], float64[:])"
+    "void(float64[:, ::1], float64[:, ::1], float64[:, ::1], boolean[:, ::1], "
+    "float64[:, ::1], float64[:, ::1], float64[:, ::1], boolean[:, ::1], "
+    "int64[::1], int64[::1], float64[::1])",
+    calls=(batch_row, add_term),
 )
 def disc_pair_total(
     ax: np.ndarray,
@@ -114,32 +139,36 @@ def disc_pair_total(
         first, second: The pairs' slots, in the order of the sum.
         out: (B,) the feature's row of the totals.
     """
-    for b in range(out.shape[0]):
-        total = 0.0
-        for p in range(first.shape[0]):
-            i = first[p]
-            j = second[p]
-            if (
-                a_absent[i, min(b, a_absent.shape[1] - 1)]
-                or b_absent[j, min(b, b_absent.shape[1] - 1)]
-            ):
-                d = 0.0
-            else:
-                dx = ax[i, min(b, ax.shape[1] - 1)] - bx[j, min(b, bx.shape[1] - 1)]
-                dy = ay[i, min(b, ay.shape[1] - 1)] - by[j, min(b, by.shape[1] - 1)]
-                d = np.sqrt(dx * dx + dy * dy)
-                d = d - ar[i, min(b, ar.shape[1] - 1)]
-                d = d - br[j, min(b, br.shape[1] - 1)]
-                if d < 0.0:
-                    d = 0.0
-            total = d if p == 0 else total + d
-        out[b] = total
+    n = out.shape[0]
+    spare = np.empty((6, n))
+    spare_absent = np.empty((2, n), dtype=np.bool_)
+    if first.shape[0] == 0:
+        out[:] = 0.0
+    for p in range(first.shape[0]):
+        i = first[p]
+        j = second[p]
+        x1 = batch_row(ax, i, spare[0])
+        y1 = batch_row(ay, i, spare[1])
+        r1 = batch_row(ar, i, spare[2])
+        x2 = batch_row(bx, j, spare[3])
+        y2 = batch_row(by, j, spare[4])
+        r2 = batch_row(br, j, spare[5])
+        absent1 = batch_row(a_absent, i, spare_absent[0])
+        absent2 = batch_row(b_absent, j, spare_absent[1])
+        for b in range(n):
+            dx = x1[b] - x2[b]
+            dy = y1[b] - y2[b]
+            d = np.sqrt(dx * dx + dy * dy)
+            d = d - r1[b]
+            d = d - r2[b]
+            add_term(out, b, p == 0, d, absent1[b], absent2[b])
 
 
 @compiled(
-    "void(float64[:, :], float64[:, :], float64[:, :], boolean[:, :], "
-    "float64[:, :, :], float64[:, :, :], float64[:, :, :], float64[:, :, :], "
-    "float64[:, :, :], boolean[:, :], int64[::1], int64[::1], float64[:])"
+    "void(float64[:, ::1], float64[:, ::1], float64[:, ::1], boolean[:, ::1], "
+    "float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], "
+    "float64[:, :, ::1], boolean[:, ::1], int64[::1], int64[::1], float64[::1])",
+    calls=(batch_row, add_term),
 )
 def disc_segment_total(
     cx: np.ndarray,
@@ -169,42 +198,42 @@ def disc_segment_total(
         disc, polygon: The pairs' slots, in the order of the sum.
         out: (B,) the feature's row of the totals.
     """
-    n_segments = sax.shape[0]
-    for b in range(out.shape[0]):
-        total = 0.0
-        for p in range(disc.shape[0]):
-            i = disc[p]
-            k = polygon[p]
-            if (
-                c_absent[i, min(b, c_absent.shape[1] - 1)]
-                or s_absent[k, min(b, s_absent.shape[1] - 1)]
-            ):
-                d = 0.0
-            else:
-                px = cx[i, min(b, cx.shape[1] - 1)]
-                py = cy[i, min(b, cy.shape[1] - 1)]
-                col = min(b, sax.shape[2] - 1)
-                least = 0.0
-                for q in range(n_segments):
-                    dx = px - sax[q, k, col]
-                    dy = py - say[q, k, col]
-                    abx = sabx[q, k, col]
-                    aby = saby[q, k, col]
-                    t = (dx * abx + dy * aby) * inverse[q, k, col]
-                    # np.clip: NaN stays NaN.
-                    if t < 0.0:
-                        t = 0.0
-                    elif t > 1.0:
-                        t = 1.0
-                    dx = dx - t * abx
-                    dy = dy - t * aby
-                    d2 = dx * dx + dy * dy
-                    # np.minimum: a NaN, once met, stays.
-                    if q == 0 or (not np.isnan(least) and not least <= d2):
-                        least = d2
-                d = np.sqrt(least)
-                d = d - cr[i, min(b, cr.shape[1] - 1)]
-                if d < 0.0:
-                    d = 0.0
-            total = d if p == 0 else total + d
-        out[b] = total
+    n = out.shape[0]
+    spare = np.empty((8, n))
+    spare_absent = np.empty((2, n), dtype=np.bool_)
+    least = np.empty(n)
+    if disc.shape[0] == 0:
+        out[:] = 0.0
+    for p in range(disc.shape[0]):
+        i = disc[p]
+        k = polygon[p]
+        px = batch_row(cx, i, spare[0])
+        py = batch_row(cy, i, spare[1])
+        for q in range(sax.shape[0]):
+            ax = batch_row(sax[q], k, spare[2])
+            ay = batch_row(say[q], k, spare[3])
+            abx = batch_row(sabx[q], k, spare[4])
+            aby = batch_row(saby[q], k, spare[5])
+            inv = batch_row(inverse[q], k, spare[6])
+            for b in range(n):
+                dx = px[b] - ax[b]
+                dy = py[b] - ay[b]
+                t = (dx * abx[b] + dy * aby[b]) * inv[b]
+                # np.clip: NaN stays NaN.
+                if t < 0.0:
+                    t = 0.0
+                elif t > 1.0:
+                    t = 1.0
+                dx = dx - t * abx[b]
+                dy = dy - t * aby[b]
+                d2 = dx * dx + dy * dy
+                # np.minimum: a NaN, once met, stays.
+                if q == 0 or (not np.isnan(least[b]) and not least[b] <= d2):
+                    least[b] = d2
+        r = batch_row(cr, i, spare[7])
+        absent_disc = batch_row(c_absent, i, spare_absent[0])
+        absent_polygon = batch_row(s_absent, k, spare_absent[1])
+        for b in range(n):
+            d = np.sqrt(least[b])
+            d = d - r[b]
+            add_term(out, b, p == 0, d, absent_disc[b], absent_polygon[b])
