@@ -19,6 +19,7 @@ controller's vector is the mean over its trials (:func:`mean_over_trials`).
 from __future__ import annotations
 
 import numpy as np
+from sdbc_sim.compiled import compiled
 
 UNDEFINED_VALUE = 0.0
 """M_f and F_f of a feature never defined during a trial (docs/method.md,
@@ -87,11 +88,11 @@ class TrialAggregator:
         """Adds one step given each feature as ``total / count``, both (F, B),
         undefined where the count is 0; saves :meth:`update`'s NaN round trip.
         Counts are whole numbers >= 0."""
-        defined = np.greater(count, 0.0, out=self._defined)
-        defined &= active
-        # Where the count is 0 the total is 0 too: dividing by 1 instead keeps 0.
-        np.divide(total, np.maximum(count, 1.0, out=self._value), out=self._value)
-        self._add(defined, active)
+        # One compiled pass instead of a dozen whole-array ones (the extractor
+        # calls this at every step); :meth:`update` is its numpy formulation.
+        _add_totals(
+            total, count, active, self._sum, self._count, self._last, self._length
+        )
 
     def update_trials(
         self, trials: np.ndarray, total: np.ndarray, count: np.ndarray
@@ -130,6 +131,39 @@ class TrialAggregator:
         return np.concatenate(
             [means.T, self._last.T, self._length[:, None].astype(np.float64)], axis=1
         )
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :], boolean[:], float64[:, ::1], "
+    "float64[:, ::1], float64[:, ::1], int64[::1])"
+)
+def _add_totals(
+    total: np.ndarray,
+    count: np.ndarray,
+    active: np.ndarray,
+    sums: np.ndarray,
+    counts: np.ndarray,
+    last: np.ndarray,
+    length: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against TrialAggregator.update
+    """Adds one step given as ``total / count`` (F, B) for the ``active`` (B,)
+    trials to the running ``sums``, ``counts``, ``last`` values (F, B) and
+    ``length`` (B,), doing per value what :meth:`TrialAggregator.update` does: a
+    value is defined where its count is > 0 in an active trial, an undefined one
+    adds 0 (its total is 0 too: dividing by 1 keeps it) and leaves the last value
+    as it was."""
+    for f in range(total.shape[0]):
+        for b in range(total.shape[1]):
+            c = count[f, b]
+            defined = c > 0.0 and active[b]
+            value = total[f, b] / (c if c >= 1.0 else 1.0) if defined else 0.0
+            sums[f, b] += value
+            counts[f, b] += 1.0 if defined else 0.0
+            if defined:
+                last[f, b] = value
+    for b in range(length.shape[0]):
+        if active[b]:
+            length[b] += 1
 
 
 def aggregate_trial(samples: np.ndarray) -> np.ndarray:
