@@ -12,6 +12,8 @@ step k - 1.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -19,12 +21,15 @@ import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
+from sdbc_sim.sensors import norm, robot_sum
+from sdbc_sim.task import BodyState
 from sdbc_sim.task_state import TaskState
 from sdbc_sim.tasks import make_task
 from sdbc_sim.tasks.resource_sharing import (
     NO_CHARGE_OPTIMUM,
     ResourceSharing,
     ResourceSharingConfig,
+    ResourceSharingTrials,
 )
 
 STOP = (0.0, 0.5, 1.0)
@@ -489,3 +494,85 @@ def test_charging_input_senses_the_station_or_the_charge(placed) -> None:
             seen.append(stepper.sensors()[0, 7])
             stepper.step(np.array([GO, STOP, STOP]))
         assert seen == expected
+
+
+class ArrayResourceSharing(ResourceSharing):
+    """The task with its energy rules as whole-array numpy: the formulation the
+    compiled loop replaced, kept as its oracle."""
+
+    def update(
+        self, trials: ResourceSharingTrials, bodies: BodyState, step: int
+    ) -> np.ndarray:
+        c = self.config
+        drain = c.min_energy_drain + (c.max_energy_drain - c.min_energy_drain) * (
+            trials.command
+        )
+        energy = np.maximum(trials.energy - drain, 0.0, out=trials.energy)
+        alive = energy > 0.0
+        pos = bodies.position
+        distance = norm(
+            pos[..., 0] - self.station_centre[0], pos[..., 1] - self.station_centre[1]
+        )
+        speed = bodies.speed
+        docked = alive & (distance < c.docking_distance) & (speed < c.stationary_speed)
+        charging = docked & (trials.docked_steps >= c.charge_delay)
+        trials.docked_steps = np.where(
+            docked, np.minimum(trials.docked_steps + 1, c.charge_delay), 0
+        )
+        trials.charging = charging
+        if c.anchor_docked:
+            np.copyto(bodies.anchored, docked)
+        np.minimum(
+            energy + np.where(charging, c.charge_rate, 0.0), c.max_energy, out=energy
+        )
+        trials.energy_sum += robot_sum(energy)
+        if step % c.characterisation_interval == 0:
+            trials.samples += np.count_nonzero(alive, axis=1)
+            trials.sampled_energy += robot_sum(energy * alive)
+            trials.sampled_speed += robot_sum(speed * alive)
+            trials.sampled_distance += robot_sum(distance * alive)
+        return ~alive.any(axis=1)
+
+
+@pytest.mark.parametrize("anchor_docked", [False, True])
+@pytest.mark.parametrize("step", [1, 2])
+def test_compiled_rules_equal_the_array_formulation(
+    anchor_docked: bool, step: int
+) -> None:
+    """To the bit, over five steps of many trials: every trial array the rules
+    write, the anchors and the ends, with robots dying, docking at exactly the
+    docking distance and stationary speed, counting, charging to e_max, and
+    samples taken every other step."""
+    settings = {"anchor_docked": anchor_docked, "characterisation_interval": 2}
+    task = make_task("resource_sharing", **settings)
+    oracle = ArrayResourceSharing(ResourceSharingConfig(**settings))
+    c = task.config
+    rng = np.random.default_rng(step)
+    b, n = 120, c.n_robots
+    got, _, _ = task.reset([np.random.default_rng(t) for t in range(b)])
+    got.energy[:] = rng.choice([0.0, 1.0, 2.5, 300.0, 495.0, 500.0], (b, n))
+    got.docked_steps[:] = rng.integers(0, c.charge_delay + 1, (b, n))
+    want = copy.deepcopy(got)
+    rows = np.zeros((b, n, 5))
+    near = rng.random((b, n)) < 0.6
+    offset = np.where(near, rng.choice([0.0, 0.5, c.docking_distance], (b, n)), 30.0)
+    rows[..., 0] = CENTRE[0] + offset
+    rows[..., 1] = CENTRE[1]
+    rows[..., 3] = rng.choice([0.0, 0.0005, c.stationary_speed, 0.5], (b, n))
+    got_bodies = BodyState.at_rest(rows[..., 0:2], np.zeros((b, n)))
+    got_bodies.velocity[..., 0] = rows[..., 3]
+    want_bodies = copy.deepcopy(got_bodies)
+    for k in range(step, step + 5):
+        command = rng.choice([0.0, 0.3, 1.0], (b, n))
+        got.command = command.copy()
+        want.command = command.copy()
+        np.testing.assert_array_equal(
+            task.update(got, got_bodies, k), oracle.update(want, want_bodies, k)
+        )
+        for field in dataclasses.fields(got):
+            np.testing.assert_array_equal(
+                getattr(got, field.name), getattr(want, field.name), field.name
+            )
+        np.testing.assert_array_equal(got_bodies.anchored, want_bodies.anchored)
+    assert got.charging.any() and not got.charging.all()
+    assert (got.energy == 0.0).any() and (got.energy == c.max_energy).any()

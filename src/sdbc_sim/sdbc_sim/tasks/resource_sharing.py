@@ -114,12 +114,12 @@ from typing import Literal
 import numpy as np
 
 from sdbc_sim.arena import draw_team
+from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     bearing,
     neighbour_sectors,
     norm,
-    robot_sum,
 )
 from sdbc_sim.settings import (
     Fraction,
@@ -427,35 +427,37 @@ class ResourceSharing(Task[ResourceSharingTrials]):
         self, trials: ResourceSharingTrials, bodies: BodyState, step: int
     ) -> np.ndarray:
         c = self.config
-        drain = c.min_energy_drain + (c.max_energy_drain - c.min_energy_drain) * (
-            trials.command
+        ends = np.empty(trials.energy.shape[0], dtype=bool)
+        _energy_rules(
+            trials.energy,
+            trials.command,
+            trials.docked_steps,
+            trials.charging,
+            bodies.position,
+            bodies.speed,
+            np.array(
+                [
+                    c.min_energy_drain,
+                    c.max_energy_drain,
+                    *self.station_centre,
+                    c.docking_distance,
+                    c.stationary_speed,
+                    c.charge_rate,
+                    c.max_energy,
+                ]
+            ),
+            c.charge_delay,
+            step % c.characterisation_interval == 0,
+            c.anchor_docked,
+            bodies.anchored,
+            trials.energy_sum,
+            trials.samples,
+            trials.sampled_energy,
+            trials.sampled_speed,
+            trials.sampled_distance,
+            ends,
         )
-        energy = np.maximum(trials.energy - drain, 0.0, out=trials.energy)
-        alive = energy > 0.0
-        pos = bodies.position
-        distance = norm(
-            pos[..., 0] - self.station_centre[0], pos[..., 1] - self.station_centre[1]
-        )
-        speed = bodies.speed
-        docked = alive & (distance < c.docking_distance) & (speed < c.stationary_speed)
-        # Charging needs charge_delay docked steps before this one.
-        charging = docked & (trials.docked_steps >= c.charge_delay)
-        trials.docked_steps = np.where(
-            docked, np.minimum(trials.docked_steps + 1, c.charge_delay), 0
-        )
-        trials.charging = charging
-        if c.anchor_docked:
-            np.copyto(bodies.anchored, docked)
-        np.minimum(
-            energy + np.where(charging, c.charge_rate, 0.0), c.max_energy, out=energy
-        )
-        trials.energy_sum += robot_sum(energy)
-        if step % c.characterisation_interval == 0:
-            trials.samples += np.count_nonzero(alive, axis=1)
-            trials.sampled_energy += robot_sum(energy * alive)
-            trials.sampled_speed += robot_sum(speed * alive)
-            trials.sampled_distance += robot_sum(distance * alive)
-        return ~alive.any(axis=1)
+        return ends
 
     def task_state(
         self, trials: ResourceSharingTrials, bodies: BodyState
@@ -502,6 +504,96 @@ class ResourceSharing(Task[ResourceSharingTrials]):
             axis=1,
         )
         return fitness, characterisation
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :], int64[:, :], boolean[:, :], "
+    "float64[:, :, :], float64[:, :], float64[::1], int64, boolean, boolean, "
+    "boolean[:, :], float64[:], int64[:], float64[:], float64[:], float64[:], "
+    "boolean[::1])"
+)
+def _energy_rules(
+    energy: np.ndarray,
+    command: np.ndarray,
+    docked_steps: np.ndarray,
+    charging: np.ndarray,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    constants: np.ndarray,
+    charge_delay: int,
+    sample: bool,
+    anchor_docked: bool,
+    anchored: np.ndarray,
+    energy_sum: np.ndarray,
+    samples: np.ndarray,
+    sampled_energy: np.ndarray,
+    sampled_speed: np.ndarray,
+    sampled_distance: np.ndarray,
+    ends: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """One step of the energy rules (module docstring: drain, death, charging,
+    counting), in place on the (B, N) trial arrays, then the fitness sum, the
+    characterisation's samples when ``sample``, and ``ends`` (B,): no robot alive.
+
+    ``constants`` are the drains at rest and at full speed, the station centre
+    (x, y), the docking distance, the stationary speed, the charge rate and
+    e_max. A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays these were
+    some thirty operations over (B, N) at every step; the loop does each robot's
+    operations in their order and sums the robots in index order, as
+    ``robot_sum`` does (``tests/sdbc_sim/tasks/test_resource_sharing.py``).
+    """
+    least_drain, most_drain, cx, cy, dock, stationary, rate, most = constants
+    for b in range(energy.shape[0]):
+        anyone = False
+        alive_count = 0
+        total = s_energy = s_speed = s_distance = 0.0  # the first robot's, below
+        for r in range(energy.shape[1]):
+            drain = least_drain + (most_drain - least_drain) * command[b, r]
+            e = energy[b, r] - drain
+            # np.maximum(e, 0): a NaN stays.
+            if not (e >= 0.0 or np.isnan(e)):
+                e = 0.0
+            alive = e > 0.0
+            dx = pos[b, r, 0] - cx
+            dy = pos[b, r, 1] - cy
+            d2 = dx * dx
+            d2 += dy * dy
+            distance = np.sqrt(d2)
+            docked = alive and distance < dock and speed[b, r] < stationary
+            charges = docked and docked_steps[b, r] >= charge_delay
+            docked_steps[b, r] = (
+                min(docked_steps[b, r] + 1, charge_delay) if docked else 0
+            )
+            charging[b, r] = charges
+            if anchor_docked:
+                anchored[b, r] = docked
+            e = e + (rate if charges else 0.0)
+            # np.minimum(e, e_max): a NaN stays.
+            if not (e <= most or np.isnan(e)):
+                e = most
+            energy[b, r] = e
+            on = 1.0 if alive else 0.0
+            if r == 0:
+                total, s_energy, s_speed, s_distance = (
+                    e,
+                    e * on,
+                    speed[b, r] * on,
+                    distance * on,
+                )
+            else:
+                total += e
+                s_energy += e * on
+                s_speed += speed[b, r] * on
+                s_distance += distance * on
+            anyone = anyone or alive
+            alive_count += 1 if alive else 0
+        energy_sum[b] += total
+        if sample:
+            samples[b] += alive_count
+            sampled_energy[b] += s_energy
+            sampled_speed[b] += s_speed
+            sampled_distance[b] += s_distance
+        ends[b] = not anyone
 
 
 TASK = ResourceSharing
