@@ -191,7 +191,15 @@ class PhysicsSettings:
             like the authors' robots, which retry a blocked move sideways.
         hash_cell: Spatial hash cell size, a power of two; None picks the smallest
             power of two at least ``HASH_CELL_DIAMETERS`` largest body diameters.
-        hash_cells_per_trial: Hash table cells per trial of a Space.
+        hash_cells_per_trial: Hash table cells per trial of a Space. Chipmunk
+            empties the whole table of moving shapes at every step, so a larger
+            table costs time whatever it holds; a smaller one puts more cells in
+            one bin. 16 since 2026-12-03 (64 before): ``bench/engine.py --sweep
+            hash_cells_per_trial=64,16,8,4 --repeat 4`` put the chipmunk floor
+            of resource sharing at 5.46M, 6.13M, 6.12M, 5.97M robot-steps/s and
+            of predator-prey at 3.69M, 4.62M, 4.07M, 4.16M; gate escape, whose
+            walls dominate, was flat. Results stayed the same to the bit
+            (``bench/identity.py``, and trials alone against in a batch of 2000).
         separation_iterations: Most projection passes per step in a trial with
             an overlap (see :func:`~sdbc_sim.separation.project_apart`).
         actuation: How a body gets its commanded velocity v*. ``velocity`` (the
@@ -212,7 +220,7 @@ class PhysicsSettings:
     overlap_tolerance: float = 0.02
     friction: float = 0.0
     hash_cell: float | None = None
-    hash_cells_per_trial: int = 64
+    hash_cells_per_trial: int = 16
     separation_iterations: int = 8
     actuation: Actuation = "velocity"
     model: Model = "rigid"
