@@ -160,7 +160,7 @@ def array_neighbour_sectors(
     )
     out = np.full((b * n, n_sectors), 1.0)
     np.minimum.at(out, (rows, arc_index(bearings, n_sectors)), readings)
-    return out.reshape(b, n, n_sectors), sensed
+    return out.reshape(b, n, n_sectors), robot_sum(sensed.astype(np.float64), axis=-1)
 
 
 @pytest.mark.parametrize("per_trial", [False, True])
@@ -182,8 +182,8 @@ def test_neighbour_sectors_equal_the_array_formulation(
     if per_trial:
         visible = visible & (rng.random((b, n, n)) < 0.7)
     args = (pos, np.cos(heading), np.sin(heading), 0.5, 3.0, n_sectors, visible)
-    got, got_sensed = neighbour_sectors(*args)
-    want, want_sensed = array_neighbour_sectors(*args)
-    np.testing.assert_array_equal(got_sensed, want_sensed)
+    got, got_counts = neighbour_sectors(*args)
+    want, want_counts = array_neighbour_sectors(*args)
+    np.testing.assert_array_equal(got_counts, want_counts)
     np.testing.assert_array_equal(got, want)
     assert (want == -1.0).any() and (want == 1.0).any() and (np.abs(want) < 1).any()

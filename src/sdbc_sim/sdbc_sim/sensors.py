@@ -342,10 +342,10 @@ def neighbour_sectors(
 
     Returns:
         (B, N, n_sectors) readings, 1 where a sector senses nobody, and the
-        (B, N, N) bool of who senses whom.
+        (B, N) number of robots each robot senses (as float64).
     """
     b, n = cos_h.shape
-    sensed = np.empty((b, n, n), dtype=np.bool_)
+    counts = np.empty((b, n))
     most = b * n * n
     rows = np.empty(most, dtype=np.intp)
     left = np.empty(most)
@@ -359,7 +359,7 @@ def neighbour_sectors(
         2.0 * robot_radius,
         sensor_range,
         2.0 / sensor_range,
-        sensed,
+        counts,
         rows,
         left,
         ahead,
@@ -368,12 +368,12 @@ def neighbour_sectors(
     # bearing()'s atan2 stays in numpy (sdbc_sim.compiled), over the sensed pairs.
     bearings = np.arctan2(left[:k], ahead[:k])
     sectors = sector_minimum(rows[:k], bearings, readings[:k], b * n, n_sectors)
-    return sectors.reshape(b, n, n_sectors), sensed
+    return sectors.reshape(b, n, n_sectors), counts
 
 
 @compiled(
     "intp(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], boolean[:, :, ::1], "
-    "float64, float64, float64, boolean[:, :, ::1], intp[::1], float64[::1], "
+    "float64, float64, float64, float64[:, ::1], intp[::1], float64[::1], "
     "float64[::1], float64[::1])"
 )
 def _sensed_pairs(
@@ -384,15 +384,16 @@ def _sensed_pairs(
     gap: float,
     sensor_range: float,
     scale: float,
-    sensed: np.ndarray,
+    counts: np.ndarray,
     rows: np.ndarray,
     left: np.ndarray,
     ahead: np.ndarray,
     readings: np.ndarray,
 ) -> int:  # pragma: no cover - compiled; tested through neighbour_sectors
-    """Who senses whom ((B, N, N) ``sensed``) and, for the K sensed pairs in
-    row-major order, the sensing robot's flat row, the offset rotated into its
-    frame (:func:`bearing`'s atan2 arguments) and the reading; returns K.
+    """How many robots each robot senses ((B, N) ``counts``, summed in index
+    order as ``robot_sum`` does) and, for the K sensed pairs in row-major order,
+    the sensing robot's flat row, the offset rotated into its frame
+    (:func:`bearing`'s atan2 arguments) and the reading; returns K.
 
     A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays this made
     (B, N, N) offsets, distances and masks and gathered them at every step; the
@@ -408,18 +409,20 @@ def _sensed_pairs(
             yi = pos[t, i, 1]
             c = cos_h[t, i]
             s = sin_h[t, i]
+            count = 0.0
             for j in range(n):
                 dx = pos[t, j, 0] - xi
                 dy = pos[t, j, 1] - yi
                 edge = np.sqrt(dx * dx + dy * dy) - gap
                 seen = edge <= sensor_range and visible[v, i, j]
-                sensed[t, i, j] = seen
                 if not seen:
                     continue
+                count += 1.0
                 reading = min(edge * scale - 1.0, 1.0)
                 rows[k] = t * n + i
                 left[k] = dy * c - dx * s
                 ahead[k] = dx * c + dy * s
                 readings[k] = max(reading, -1.0)
                 k += 1
+            counts[t, i] = count
     return k

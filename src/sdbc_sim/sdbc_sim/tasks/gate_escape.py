@@ -298,7 +298,7 @@ class GateEscape(Task[GateEscapeTrials]):
         if seen.any():
             out[seen, 1] = bearing(gx[seen], gy[seen], cos_h[seen], sin_h[seen]) / np.pi
         # Other robots still inside, edge to edge.
-        arcs, sensed = neighbour_sectors(
+        arcs, count = neighbour_sectors(
             pos,
             cos_h,
             sin_h,
@@ -307,7 +307,6 @@ class GateEscape(Task[GateEscapeTrials]):
             c.n_robot_arcs,
             self._not_self & bodies.enabled[:, None, :],
         )
-        count = robot_sum(sensed.astype(np.float64), axis=-1)
         out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
         out[..., 3 : 3 + c.n_robot_arcs] = arcs
         out[..., 3 + c.n_robot_arcs :] = self._wall_rays.read(pos, cos_h, sin_h)
