@@ -92,7 +92,7 @@ class WallRays:
         x0, y0, x1, y1 = self.box
         out = np.empty((*cos_heading.shape, self.n_rays))
         _wall_ray_readings(
-            np.ascontiguousarray(pos, dtype=np.float64).reshape(-1, 2),
+            np.asarray(pos, dtype=np.float64).reshape(-1, 2),
             np.ascontiguousarray(cos_heading, dtype=np.float64).reshape(-1),
             np.ascontiguousarray(sin_heading, dtype=np.float64).reshape(-1),
             self._cos,
@@ -108,7 +108,7 @@ class WallRays:
 
 
 @compiled(
-    "void(float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], "
+    "void(float64[:, :], float64[::1], float64[::1], float64[::1], float64[::1], "
     "float64, float64, float64, float64[::1], float64[:, :, ::1], float64[:, ::1])",
     calls=(ray_distance,),
 )

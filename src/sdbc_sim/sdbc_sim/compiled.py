@@ -12,8 +12,10 @@ loop called before that loads itself. A process that never steps the physics (a
 controller node, a command-line tool) never pays it, and one that does pays it at
 a known point rather than at whichever step first needs a loop.
 
-Every loop has one signature (its callers pass contiguous arrays of the types it
-names) and is compiled without fast-math: its additions, multiplications,
+Every loop has one signature (its callers pass arrays of the types it names,
+contiguous where it says so; the robots' positions, strided views of the engine's
+state rows, go in as they are rather than copied at every step) and is compiled
+without fast-math: its additions, multiplications,
 divisions, square roots and comparisons are the IEEE operations numpy does, and
 each loop does them in the order of the array formulation it replaces, so its
 results are the same to the bit (each module's tests keep that formulation as

@@ -352,7 +352,7 @@ def neighbour_sectors(
     ahead = np.empty(most)
     readings = np.empty(most)
     k = _sensed_pairs(
-        np.ascontiguousarray(pos, dtype=np.float64),
+        np.asarray(pos, dtype=np.float64),
         np.ascontiguousarray(cos_h, dtype=np.float64),
         np.ascontiguousarray(sin_h, dtype=np.float64),
         np.ascontiguousarray(visible, dtype=np.bool_).reshape(-1, n, n),
@@ -372,7 +372,7 @@ def neighbour_sectors(
 
 
 @compiled(
-    "intp(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], boolean[:, :, ::1], "
+    "intp(float64[:, :, :], float64[:, ::1], float64[:, ::1], boolean[:, :, ::1], "
     "float64, float64, float64, float64[:, ::1], intp[::1], float64[::1], "
     "float64[::1], float64[::1])"
 )

@@ -300,9 +300,9 @@ class PredatorPrey(Task[PredatorPreyTrials]):
         left = np.empty((b, n, r - 1))
         ahead = np.empty((b, n, r - 1))
         _seen_by_predators(
-            np.ascontiguousarray(bodies.position),
-            np.ascontiguousarray(cos_h),
-            np.ascontiguousarray(sin_h),
+            bodies.position,
+            cos_h,
+            sin_h,
             dist,
             left,
             ahead,
@@ -335,7 +335,7 @@ class PredatorPrey(Task[PredatorPreyTrials]):
         ux = np.empty(b)
         uy = np.empty(b)
         _flight(
-            np.ascontiguousarray(bodies.position),
+            bodies.position,
             c.predator_radius + c.prey_radius,
             c.flee_distance,
             centre,
@@ -362,7 +362,7 @@ class PredatorPrey(Task[PredatorPreyTrials]):
         final_distance = np.empty(b)
         dispersion = np.empty(b)
         _pursuit(
-            np.ascontiguousarray(bodies.position),
+            bodies.position,
             c.capture_distance,
             captured,
             final_distance,
@@ -430,7 +430,7 @@ TASK = PredatorPrey
 
 
 @compiled(
-    "void(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], float64[:, :, ::1], "
+    "void(float64[:, :, :], float64[:, :], float64[:, :], float64[:, :, ::1], "
     "float64[:, :, ::1], float64[:, :, ::1])"
 )
 def _seen_by_predators(
@@ -510,7 +510,7 @@ def _predator_readings(
 
 
 @compiled(
-    "void(float64[:, :, ::1], float64, float64, float64[:, ::1], float64[::1], "
+    "void(float64[:, :, :], float64, float64, float64[:, ::1], float64[::1], "
     "float64[::1])"
 )
 def _flight(
@@ -545,7 +545,7 @@ def _flight(
         uy[t] = sy
 
 
-@compiled("void(float64[:, :, ::1], float64, boolean[::1], float64[::1], float64[::1])")
+@compiled("void(float64[:, :, :], float64, boolean[::1], float64[::1], float64[::1])")
 def _pursuit(
     pos: np.ndarray,
     capture_distance: float,
