@@ -317,7 +317,7 @@ class Foraging(Task[ForagingTrials]):
         _nearest_free_items(
             np.ascontiguousarray(trials.items),
             np.ascontiguousarray(trials.carrier),
-            np.ascontiguousarray(pos),
+            pos,
             dn,
             ix,
             iy,
@@ -357,7 +357,7 @@ class Foraging(Task[ForagingTrials]):
             carrier,
             load,
             picked,
-            np.ascontiguousarray(pos),
+            pos,
             c.robot_radius + c.item_radius,
         )
         # The loop writes in place; an array that was not contiguous was copied.
@@ -461,7 +461,7 @@ def _nearest_free_item(
 
 
 @compiled(
-    "void(float64[:, :, ::1], int64[:, ::1], float64[:, :, ::1], float64[:, ::1], "
+    "void(float64[:, :, ::1], int64[:, ::1], float64[:, :, :], float64[:, ::1], "
     "float64[:, ::1], float64[:, ::1])",
     calls=(_nearest_free_item,),
 )
@@ -491,7 +491,7 @@ def _nearest_free_items(
 
 @compiled(
     "void(float64[:, :, ::1], int64[:, ::1], int64[:, ::1], int64[::1], "
-    "float64[:, :, ::1], float64)",
+    "float64[:, :, :], float64)",
     calls=(_nearest_free_item,),
 )
 def _pick_up_and_carry(
