@@ -706,15 +706,19 @@ class TrialSpaces:
         space.collision_bias = 1.0
         space.use_spatial_hash(cell, settings.hash_cells_per_trial * len(ids))
         moments = [pymunk.moment_for_circle(mass, 0.0, float(r)) for r in radii]
-        # All bodies first, then all shapes: chipmunk's bodies then lie together
-        # in memory, which its per-body loops read in order.
         for slot, b in enumerate(ids):
             offsets[b] = self.grid.offset(slot)
+        # World positions as Python floats in one go: a numpy sum per body cost
+        # more than the body.
+        world = (offsets[ids, None, :] + position[ids]).tolist()
+        # All bodies first, then all shapes: chipmunk's bodies then lie together
+        # in memory, which its per-body loops read in order.
+        for b, starts in zip(ids, world, strict=True):
             bodies: list[pymunk.Body] = []
             sp.bodies[b] = bodies
-            for i, moment in enumerate(moments):
+            for moment, (x, y) in zip(moments, starts, strict=True):
                 body = pymunk.Body(mass, moment)
-                body.position = tuple(offsets[b] + position[b, i])
+                body.position = (x, y)
                 bodies.append(body)
         robots: list[pymunk.Body | pymunk.Shape] = [
             body for b in ids for body in sp.bodies[b]
@@ -730,14 +734,10 @@ class TrialSpaces:
         # Robots before walls: their hash ids follow the row order (see above).
         space.add(*robots)
         segments: list[pymunk.Segment] = []
-        for b in ids:
-            for a, z in walls:
-                seg = pymunk.Segment(
-                    space.static_body,
-                    tuple(offsets[b] + a),
-                    tuple(offsets[b] + z),
-                    0.0,
-                )
+        ends = (offsets[ids, None, None, :] + walls[None]).tolist()
+        for trial_walls in ends:
+            for (ax, ay), (zx, zy) in trial_walls:
+                seg = pymunk.Segment(space.static_body, (ax, ay), (zx, zy), 0.0)
                 seg.friction = settings.friction
                 segments.append(seg)
         if segments:
