@@ -50,6 +50,30 @@ def robot_min(a: np.ndarray, axis: int = -1) -> np.ndarray:
     return low
 
 
+def distance_sum(pos: np.ndarray, trial: int, n: int, x: float, y: float) -> float:
+    """The sum, in index order, of the distances of robots 0..n-1 of ``trial`` (in
+    (B, R, 2) ``pos``) to the point (x, y): a compiled loop's helper doing what
+    ``norm`` and ``robot_sum`` do over arrays, in their order."""
+    total = 0.0
+    for r in range(n):
+        dx = pos[trial, r, 0] - x
+        dy = pos[trial, r, 1] - y
+        d = np.sqrt(dx * dx + dy * dy)
+        total = d if r == 0 else total + d
+    return total
+
+
+def centroid_spread(pos: np.ndarray, trial: int, n: int) -> float:
+    """:func:`distance_sum` to the robots' centroid, the centroid as ``robot_sum``
+    of the coordinates / n."""
+    cx = pos[trial, 0, 0]
+    cy = pos[trial, 0, 1]
+    for r in range(1, n):
+        cx += pos[trial, r, 0]
+        cy += pos[trial, r, 1]
+    return distance_sum(pos, trial, n, cx / n, cy / n)
+
+
 def norm(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     """sqrt(dx^2 + dy^2) (np.hypot guards against overflow we never meet, slowly)."""
     d = dx * dx

@@ -6,13 +6,17 @@ at speed 1 from x0 straight at the gate is at x_k = x0 - k after step k.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 import pytest
 from sdbc_sim.engine import TrialStepper
+from sdbc_sim.sensors import norm, robot_sum
+from sdbc_sim.task import BodyState
 from sdbc_sim.tasks import make_task
-from sdbc_sim.tasks.gate_escape import GateEscape, GateEscapeConfig
+from sdbc_sim.tasks.gate_escape import GateEscape, GateEscapeConfig, GateEscapeTrials
+from trial_oracle import assert_same_trials
 
 PARKED = [[150.0, 20.0], [150.0, 60.0], [150.0, 180.0]]
 """Where the robots that stay still wait in the hand-written runs."""
@@ -225,3 +229,67 @@ def test_registry_names_unknown_tasks_and_settings() -> None:
         ValueError, match="robot_radius: Input should be greater than 0"
     ):
         make_task("gate_escape", robot_radius=-2.5)
+
+
+class ArrayGateEscape(GateEscape):
+    """The task with its rules as whole-array numpy: the formulation the compiled
+    loop replaced, kept as its oracle."""
+
+    def update(
+        self, trials: GateEscapeTrials, bodies: BodyState, step: int
+    ) -> np.ndarray:
+        c = self.config
+        pos = bodies.position
+        crossed = bodies.enabled & (pos[..., 0] < 0.0)
+        if crossed.any():
+            trials.escaped |= crossed
+            bodies.enabled &= ~crossed
+            opens = crossed.any(axis=1) & (trials.open_step < 0)
+            trials.open_step[opens] = step
+        x, y = pos[..., 0], pos[..., 1]
+        n = c.n_robots
+        gd = norm(x - self.gate_centre[0], y - self.gate_centre[1])
+        trials.gate_distance_sum += robot_sum(gd) / n
+        cx = robot_sum(x) / n
+        cy = robot_sum(y) / n
+        trials.dispersion_sum += robot_sum(norm(x - cx[:, None], y - cy[:, None])) / n
+        closed = (trials.open_step >= 0) & (
+            step - trials.open_step >= c.gate_closing_steps
+        )
+        return closed | trials.escaped.all(axis=1)
+
+
+def test_compiled_rules_equal_the_array_formulation() -> None:
+    """To the bit, over steps of many trials: escapes (robots exactly on the gate
+    line stay in), the gate opening at the first and closing gate_closing_steps
+    later, robots already out, every robot out, and the distance sums."""
+    task = make_task("gate_escape", gate_closing_steps=3)
+    oracle = ArrayGateEscape(GateEscapeConfig(gate_closing_steps=3))
+    n_trials, n = 150, task.config.n_robots
+    rng = np.random.default_rng(4)
+    got, _, _ = task.reset([np.random.default_rng(t) for t in range(n_trials)])
+    got.open_step[: n_trials // 3] = rng.integers(1, 4, n_trials // 3)
+    got.escaped[: n_trials // 3] = rng.random((n_trials // 3, n)) < 0.5
+    got.escaped[0] = True
+    want = copy.deepcopy(got)
+    rows = np.zeros((n_trials, n, 5))
+    got_bodies = BodyState.at_rest(rows[..., 0:2], np.zeros((n_trials, n)))
+    got_bodies.enabled[:] = ~got.escaped
+    want_bodies = copy.deepcopy(got_bodies)
+    for step in range(4, 9):
+        xy = np.stack(
+            [
+                rng.choice([-1.5, -0.0, 0.0, 0.5, 40.0], (n_trials, n)),
+                rng.uniform(80.0, 120.0, (n_trials, n)),
+            ],
+            axis=-1,
+        )
+        got_bodies.position[:] = xy
+        want_bodies.position[:] = xy
+        np.testing.assert_array_equal(
+            task.update(got, got_bodies, step), oracle.update(want, want_bodies, step)
+        )
+        assert_same_trials(got, want)
+        np.testing.assert_array_equal(got_bodies.enabled, want_bodies.enabled)
+    assert got.escaped.all(axis=1).any() and not got.escaped.all()
+    assert (got.open_step >= 0).any() and (got.open_step < 0).any()

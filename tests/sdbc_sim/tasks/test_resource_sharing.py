@@ -13,7 +13,6 @@ step k - 1.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 from collections.abc import Callable
 
@@ -31,6 +30,7 @@ from sdbc_sim.tasks.resource_sharing import (
     ResourceSharingConfig,
     ResourceSharingTrials,
 )
+from trial_oracle import assert_same_trials
 
 STOP = (0.0, 0.5, 1.0)
 GO = (1.0, 0.5, 0.0)
@@ -569,10 +569,7 @@ def test_compiled_rules_equal_the_array_formulation(
         np.testing.assert_array_equal(
             task.update(got, got_bodies, k), oracle.update(want, want_bodies, k)
         )
-        for field in dataclasses.fields(got):
-            np.testing.assert_array_equal(
-                getattr(got, field.name), getattr(want, field.name), field.name
-            )
+        assert_same_trials(got, want)
         np.testing.assert_array_equal(got_bodies.anchored, want_bodies.anchored)
     assert got.charging.any() and not got.charging.all()
     assert (got.energy == 0.0).any() and (got.energy == c.max_energy).any()

@@ -56,14 +56,16 @@ from typing import Literal
 import numpy as np
 
 from sdbc_sim.arena import WallRays, speed_and_turn, wall_group, wall_state
+from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     TWO_PI,
     bearing,
+    centroid_spread,
+    distance_sum,
     neighbour_sectors,
     norm,
     normalised_reading,
-    robot_sum,
 )
 from sdbc_sim.settings import (
     Fraction,
@@ -321,25 +323,21 @@ class GateEscape(Task[GateEscapeTrials]):
     def update(
         self, trials: GateEscapeTrials, bodies: BodyState, step: int
     ) -> np.ndarray:
-        c = self.config
-        pos = bodies.position
-        crossed = bodies.enabled & (pos[..., 0] < 0.0)
-        if crossed.any():
-            trials.escaped |= crossed
-            bodies.enabled &= ~crossed
-            opens = crossed.any(axis=1) & (trials.open_step < 0)
-            trials.open_step[opens] = step
-        x, y = pos[..., 0], pos[..., 1]
-        n = c.n_robots
-        gd = norm(x - self.gate_centre[0], y - self.gate_centre[1])
-        trials.gate_distance_sum += robot_sum(gd) / n
-        cx = robot_sum(x) / n
-        cy = robot_sum(y) / n
-        trials.dispersion_sum += robot_sum(norm(x - cx[:, None], y - cy[:, None])) / n
-        closed = (trials.open_step >= 0) & (
-            step - trials.open_step >= c.gate_closing_steps
+        ends = np.empty(trials.open_step.shape[0], dtype=bool)
+        _escape_rules(
+            bodies.position,
+            bodies.enabled,
+            trials.escaped,
+            trials.open_step,
+            trials.gate_distance_sum,
+            trials.dispersion_sum,
+            self.gate_centre[0],
+            self.gate_centre[1],
+            step,
+            self.config.gate_closing_steps,
+            ends,
         )
-        return closed | trials.escaped.all(axis=1)
+        return ends
 
     def task_state(
         self, trials: GateEscapeTrials, bodies: BodyState
@@ -392,6 +390,54 @@ class GateEscape(Task[GateEscapeTrials]):
             axis=1,
         )
         return fitness, characterisation
+
+
+@compiled(
+    "void(float64[:, :, :], boolean[:, :], boolean[:, :], int64[:], float64[:], "
+    "float64[:], float64, float64, int64, int64, boolean[::1])",
+    calls=(centroid_spread, distance_sum),
+)
+def _escape_rules(
+    pos: np.ndarray,
+    enabled: np.ndarray,
+    escaped: np.ndarray,
+    open_step: np.ndarray,
+    gate_distance_sum: np.ndarray,
+    dispersion_sum: np.ndarray,
+    gate_x: float,
+    gate_y: float,
+    step: int,
+    closing_steps: int,
+    ends: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """One step of the rules (module docstring), in place: a robot still in
+    whose centre crossed the gate line (x < 0) has escaped and is switched off,
+    and the first escape opens the gate; then the sums of the robots' mean
+    distance to the gate centre and to their centroid; ``ends`` (B,): the gate
+    closed or every robot out.
+
+    A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays these were about
+    twenty operations over (B, N) at every step; the loop does each robot's
+    operations in their order and sums the robots in index order, as
+    ``robot_sum`` does (``tests/sdbc_sim/tasks/test_gate_escape.py``).
+    """
+    n = pos.shape[1]
+    for b in range(pos.shape[0]):
+        crossed = False
+        for r in range(n):
+            if enabled[b, r] and pos[b, r, 0] < 0.0:
+                escaped[b, r] = True
+                enabled[b, r] = False
+                crossed = True
+        if crossed and open_step[b] < 0:
+            open_step[b] = step
+        gate_distance_sum[b] += distance_sum(pos, b, n, gate_x, gate_y) / n
+        dispersion_sum[b] += centroid_spread(pos, b, n) / n
+        everyone = True
+        for r in range(n):
+            everyone = everyone and escaped[b, r]
+        closed = open_step[b] >= 0 and step - open_step[b] >= closing_steps
+        ends[b] = closed or everyone
 
 
 TASK = GateEscape

@@ -71,7 +71,7 @@ import numpy as np
 
 from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
-from sdbc_sim.sensors import robot_sum, wrap_angle
+from sdbc_sim.sensors import centroid_spread, distance_sum, robot_sum, wrap_angle
 from sdbc_sim.settings import PositiveFloat, PositiveInt, check, settings
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -545,7 +545,10 @@ def _flight(
         uy[t] = sy
 
 
-@compiled("void(float64[:, :, :], float64, boolean[::1], float64[::1], float64[::1])")
+@compiled(
+    "void(float64[:, :, :], float64, boolean[::1], float64[::1], float64[::1])",
+    calls=(centroid_spread, distance_sum),
+)
 def _pursuit(
     pos: np.ndarray,
     capture_distance: float,
@@ -562,29 +565,12 @@ def _pursuit(
         qy = pos[t, n, 1]
         caught = False
         total = 0.0
-        cx = 0.0
-        cy = 0.0
         for i in range(n):
             ox = pos[t, i, 0] - qx
             oy = pos[t, i, 1] - qy
             c = np.sqrt(ox * ox + oy * oy)
             caught = caught or c <= capture_distance
-            if i == 0:
-                total = c
-                cx = pos[t, i, 0]
-                cy = pos[t, i, 1]
-            else:
-                total += c
-                cx += pos[t, i, 0]
-                cy += pos[t, i, 1]
-        cx = cx / n
-        cy = cy / n
-        spread = 0.0
-        for i in range(n):
-            dx = pos[t, i, 0] - cx
-            dy = pos[t, i, 1] - cy
-            e = np.sqrt(dx * dx + dy * dy)
-            spread = e if i == 0 else spread + e
+            total = c if i == 0 else total + c
         captured[t] = caught
         final_distance[t] = total / n
-        dispersion[t] = spread / n
+        dispersion[t] = centroid_spread(pos, t, n) / n

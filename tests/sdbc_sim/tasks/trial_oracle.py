@@ -1,0 +1,17 @@
+"""Comparing a task's compiled rules with the array formulation kept as their
+oracle: the per-trial state both leave behind."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from sdbc_sim.task import TrialArrays
+
+
+def assert_same_trials(got: TrialArrays, want: TrialArrays) -> None:
+    """Every array of two per-trial states equal, the field named on failure."""
+    for field in dataclasses.fields(got):
+        np.testing.assert_array_equal(
+            getattr(got, field.name), getattr(want, field.name), field.name
+        )
