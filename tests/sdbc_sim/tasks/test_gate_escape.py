@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 from sdbc_sim.engine import TrialStepper
-from sdbc_sim.sensors import norm, robot_sum
+from sdbc_sim.sensors import bearing, norm, normalised_reading, robot_sum
 from sdbc_sim.task import BodyState
 from sdbc_sim.tasks import make_task
 from sdbc_sim.tasks.gate_escape import GateEscape, GateEscapeConfig, GateEscapeTrials
@@ -232,8 +232,23 @@ def test_registry_names_unknown_tasks_and_settings() -> None:
 
 
 class ArrayGateEscape(GateEscape):
-    """The task with its rules as whole-array numpy: the formulation the compiled
-    loop replaced, kept as its oracle."""
+    """The task with its gate sensor and rules as whole-array numpy: the
+    formulation the compiled loops replaced, kept as their oracle."""
+
+    def sensors(self, trials: GateEscapeTrials, bodies: BodyState) -> np.ndarray:
+        out = super().sensors(trials, bodies)
+        c = self.config
+        pos = bodies.position
+        cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
+        gx = self.gate_centre[0] - pos[..., 0]
+        gy = self.gate_centre[1] - pos[..., 1]
+        gd = norm(gx, gy)
+        seen = gd <= c.gate_sensor_range
+        out[..., 0] = np.where(seen, normalised_reading(gd, c.gate_sensor_range), 1.0)
+        out[..., 1] = 0.0
+        if seen.any():
+            out[seen, 1] = bearing(gx[seen], gy[seen], cos_h[seen], sin_h[seen]) / np.pi
+        return out
 
     def update(
         self, trials: GateEscapeTrials, bodies: BodyState, step: int
@@ -259,10 +274,11 @@ class ArrayGateEscape(GateEscape):
         return closed | trials.escaped.all(axis=1)
 
 
-def test_compiled_rules_equal_the_array_formulation() -> None:
-    """To the bit, over steps of many trials: escapes (robots exactly on the gate
-    line stay in), the gate opening at the first and closing gate_closing_steps
-    later, robots already out, every robot out, and the distance sums."""
+def test_compiled_sensor_and_rules_equal_the_array_formulation() -> None:
+    """To the bit, over steps of many trials: the gate sensor (robots exactly at
+    its range, in and out of it), escapes (robots exactly on the gate line stay
+    in), the gate opening at the first and closing gate_closing_steps later,
+    robots already out, every robot out, and the distance sums."""
     task = make_task("gate_escape", gate_closing_steps=3)
     oracle = ArrayGateEscape(GateEscapeConfig(gate_closing_steps=3))
     n_trials, n = 150, task.config.n_robots
@@ -276,16 +292,24 @@ def test_compiled_rules_equal_the_array_formulation() -> None:
     got_bodies = BodyState.at_rest(rows[..., 0:2], np.zeros((n_trials, n)))
     got_bodies.enabled[:] = ~got.escaped
     want_bodies = copy.deepcopy(got_bodies)
+    reach = task.config.gate_sensor_range
     for step in range(4, 9):
         xy = np.stack(
             [
-                rng.choice([-1.5, -0.0, 0.0, 0.5, 40.0], (n_trials, n)),
-                rng.uniform(80.0, 120.0, (n_trials, n)),
+                rng.choice([-1.5, -0.0, 0.0, 0.5, 40.0, reach], (n_trials, n)),
+                rng.choice([80.0, 100.0, 100.0 + reach, 117.3], (n_trials, n)),
             ],
             axis=-1,
         )
         got_bodies.position[:] = xy
         want_bodies.position[:] = xy
+        heading = rng.uniform(-math.pi, math.pi, (n_trials, n))
+        for bodies in (got_bodies, want_bodies):
+            bodies.cos_angle[:] = np.cos(heading)
+            bodies.sin_angle[:] = np.sin(heading)
+        np.testing.assert_array_equal(
+            task.sensors(got, got_bodies), oracle.sensors(want, want_bodies)
+        )
         np.testing.assert_array_equal(
             task.update(got, got_bodies, step), oracle.update(want, want_bodies, step)
         )

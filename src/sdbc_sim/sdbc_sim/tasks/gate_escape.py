@@ -60,12 +60,9 @@ from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     TWO_PI,
-    bearing,
     centroid_spread,
     distance_sum,
     neighbour_sectors,
-    norm,
-    normalised_reading,
 )
 from sdbc_sim.settings import (
     Fraction,
@@ -290,15 +287,28 @@ class GateEscape(Task[GateEscapeTrials]):
         b, n = bodies.angle.shape
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
-        # Gate centre; bearings only where it is in range (few robots are).
-        gx = self.gate_centre[0] - pos[..., 0]
-        gy = self.gate_centre[1] - pos[..., 1]
-        gd = norm(gx, gy)
-        seen = gd <= c.gate_sensor_range
-        out[..., 0] = np.where(seen, normalised_reading(gd, c.gate_sensor_range), 1.0)
-        out[..., 1] = 0.0
-        if seen.any():
-            out[seen, 1] = bearing(gx[seen], gy[seen], cos_h[seen], sin_h[seen]) / np.pi
+        # Gate centre; bearings only where it is in range (few robots are), their
+        # atan2 in numpy (sdbc_sim.compiled).
+        rows = np.empty(b * n, dtype=np.intp)
+        left = np.empty(b * n)
+        ahead = np.empty(b * n)
+        k = _gate_readings(
+            pos,
+            cos_h,
+            sin_h,
+            self.gate_centre[0],
+            self.gate_centre[1],
+            c.gate_sensor_range,
+            2.0 / c.gate_sensor_range,
+            out,
+            rows,
+            left,
+            ahead,
+        )
+        if k:
+            out.reshape(b * n, -1)[rows[:k], 1] = (
+                np.arctan2(left[:k], ahead[:k]) / np.pi
+            )
         # Other robots still inside, edge to edge.
         arcs, count = neighbour_sectors(
             pos,
@@ -390,6 +400,52 @@ class GateEscape(Task[GateEscapeTrials]):
             axis=1,
         )
         return fitness, characterisation
+
+
+@compiled(
+    "intp(float64[:, :, :], float64[:, :], float64[:, :], float64, float64, float64, "
+    "float64, float64[:, :, ::1], intp[::1], float64[::1], float64[::1])"
+)
+def _gate_readings(
+    pos: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    gate_x: float,
+    gate_y: float,
+    sensor_range: float,
+    scale: float,
+    out: np.ndarray,
+    rows: np.ndarray,
+    left: np.ndarray,
+    ahead: np.ndarray,
+) -> int:  # pragma: no cover - compiled; tested against the array formulation
+    """The gate sensor's inputs 0 and 1 in ``out`` (B, N, inputs): the centre
+    distance reading (``normalised_reading``, 1 out of range) and 0 for the
+    bearing; for the K robots in range, in row-major order, their flat row and
+    the gate's offset rotated into their frame (:func:`~sdbc_sim.sensors.bearing`'s
+    atan2 arguments). Returns K. The array formulation's operations, in its order
+    (``tests/sdbc_sim/tasks/test_gate_escape.py``)."""
+    n = pos.shape[1]
+    k = 0
+    for t in range(pos.shape[0]):
+        for i in range(n):
+            gx = gate_x - pos[t, i, 0]
+            gy = gate_y - pos[t, i, 1]
+            d2 = gx * gx
+            d2 += gy * gy
+            d = np.sqrt(d2)
+            out[t, i, 1] = 0.0
+            if not d <= sensor_range:
+                out[t, i, 0] = 1.0
+                continue
+            out[t, i, 0] = min(d * scale - 1.0, 1.0)
+            c = cos_h[t, i]
+            s = sin_h[t, i]
+            rows[k] = t * n + i
+            left[k] = gy * c - gx * s
+            ahead[k] = gx * c + gy * s
+            k += 1
+    return k
 
 
 @compiled(
