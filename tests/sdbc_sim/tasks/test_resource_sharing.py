@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
-from sdbc_sim.sensors import norm, robot_sum
+from sdbc_sim.sensors import bearing, norm, robot_sum
 from sdbc_sim.task import BodyState
 from sdbc_sim.task_state import TaskState
 from sdbc_sim.tasks import make_task
@@ -497,8 +497,27 @@ def test_charging_input_senses_the_station_or_the_charge(placed) -> None:
 
 
 class ArrayResourceSharing(ResourceSharing):
-    """The task with its energy rules as whole-array numpy: the formulation the
-    compiled loop replaced, kept as its oracle."""
+    """The task with its station sensors and energy rules as whole-array numpy:
+    the formulation the compiled loops replaced, kept as their oracle."""
+
+    def sensors(self, trials: ResourceSharingTrials, bodies: BodyState) -> np.ndarray:
+        out = super().sensors(trials, bodies)
+        c = self.config
+        k = c.n_robot_arcs
+        pos = bodies.position
+        cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
+        sx = self.station_centre[0] - pos[..., 0]
+        sy = self.station_centre[1] - pos[..., 1]
+        station = norm(sx, sy)
+        out[..., k] = station * (2.0 / c.station_sensor_range) - 1.0
+        out[..., k + 1] = bearing(sx, sy, cos_h, sin_h) * (1.0 / np.pi)
+        out[..., k + 2] = trials.energy * (2.0 / c.max_energy) - 1.0
+        if c.charging_input == "in_station":
+            cue = station < c.docking_distance
+        else:
+            cue = trials.charging
+        out[..., k + 3] = np.where(cue, 1.0, -1.0)
+        return out
 
     def update(
         self, trials: ResourceSharingTrials, bodies: BodyState, step: int
@@ -573,3 +592,29 @@ def test_compiled_rules_equal_the_array_formulation(
         np.testing.assert_array_equal(got_bodies.anchored, want_bodies.anchored)
     assert got.charging.any() and not got.charging.all()
     assert (got.energy == 0.0).any() and (got.energy == c.max_energy).any()
+
+
+@pytest.mark.parametrize("charging_input", ["in_station", "charged"])
+def test_compiled_station_sensors_equal_the_array_formulation(
+    charging_input: str,
+) -> None:
+    """To the bit: the station distance, bearing, energy and station flag, with
+    robots exactly at the docking distance, on the station centre and far out."""
+    settings = {"charging_input": charging_input}
+    task = make_task("resource_sharing", **settings)
+    oracle = ArrayResourceSharing(ResourceSharingConfig(**settings))
+    c = task.config
+    rng = np.random.default_rng(9)
+    b, n = 90, c.n_robots
+    trials, _, _ = task.reset([np.random.default_rng(t) for t in range(b)])
+    trials.energy[:] = rng.choice([0.0, 1.0, 250.0, c.max_energy], (b, n))
+    trials.charging[:] = rng.random((b, n)) < 0.3
+    offset = rng.choice([0.0, 0.5, c.docking_distance, 30.0, 200.0], (b, n))
+    rows = np.zeros((b, n, 5))
+    rows[..., 0] = CENTRE[0] + offset
+    rows[..., 1] = CENTRE[1] - offset * rng.choice([0.0, 1.0], (b, n))
+    heading = rng.uniform(-math.pi, math.pi, (b, n))
+    bodies = BodyState.at_rest(rows[..., 0:2], heading)
+    np.testing.assert_array_equal(
+        task.sensors(trials, bodies), oracle.sensors(trials, bodies)
+    )

@@ -116,11 +116,7 @@ import numpy as np
 from sdbc_sim.arena import draw_team
 from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
-from sdbc_sim.sensors import (
-    bearing,
-    neighbour_sectors,
-    norm,
-)
+from sdbc_sim.sensors import neighbour_sectors
 from sdbc_sim.settings import (
     Fraction,
     NonNegativeFloat,
@@ -398,17 +394,29 @@ class ResourceSharing(Task[ResourceSharingTrials]):
         out[..., :k], _ = neighbour_sectors(
             pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, self._not_self
         )
-        sx = self.station_centre[0] - pos[..., 0]
-        sy = self.station_centre[1] - pos[..., 1]
-        station = norm(sx, sy)
-        out[..., k] = station * (2.0 / c.station_sensor_range) - 1.0
-        out[..., k + 1] = bearing(sx, sy, cos_h, sin_h) * (1.0 / np.pi)
-        out[..., k + 2] = trials.energy * (2.0 / c.max_energy) - 1.0
-        if c.charging_input == "in_station":
-            cue = station < c.docking_distance
-        else:
-            cue = trials.charging
-        out[..., k + 3] = np.where(cue, 1.0, -1.0)
+        left = np.empty((b, n))
+        ahead = np.empty((b, n))
+        _station_readings(
+            pos,
+            cos_h,
+            sin_h,
+            trials.energy,
+            trials.charging,
+            np.array(
+                [
+                    *self.station_centre,
+                    2.0 / c.station_sensor_range,
+                    2.0 / c.max_energy,
+                    c.docking_distance,
+                ]
+            ),
+            c.charging_input == "in_station",
+            out[..., k:],
+            left,
+            ahead,
+        )
+        # The bearing's atan2 stays in numpy (sdbc_sim.compiled).
+        out[..., k + 1] = np.arctan2(left, ahead) * (1.0 / np.pi)
         return out
 
     def actuate(
@@ -504,6 +512,48 @@ class ResourceSharing(Task[ResourceSharingTrials]):
             axis=1,
         )
         return fitness, characterisation
+
+
+@compiled(
+    "void(float64[:, :, :], float64[:, :], float64[:, :], float64[:, :], "
+    "boolean[:, :], float64[::1], boolean, float64[:, :, :], float64[:, ::1], "
+    "float64[:, ::1])"
+)
+def _station_readings(
+    pos: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    energy: np.ndarray,
+    charging: np.ndarray,
+    constants: np.ndarray,
+    in_station: bool,
+    out: np.ndarray,
+    left: np.ndarray,
+    ahead: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """Inputs 4 to 7 of every robot (module docstring) into ``out`` (B, N, 4):
+    the station distance reading, the bearing's place (its atan2 arguments, the
+    station's offset rotated into the robot's frame, go to ``left`` and
+    ``ahead``), the energy reading and the station flag. ``constants``: the
+    station centre (x, y), 2 / station_sensor_range, 2 / e_max and the docking
+    distance. The array formulation's operations, in its order
+    (``tests/sdbc_sim/tasks/test_resource_sharing.py``)."""
+    cx, cy, distance_scale, energy_scale, dock = constants
+    for b in range(pos.shape[0]):
+        for r in range(pos.shape[1]):
+            sx = cx - pos[b, r, 0]
+            sy = cy - pos[b, r, 1]
+            d2 = sx * sx
+            d2 += sy * sy
+            station = np.sqrt(d2)
+            c = cos_h[b, r]
+            s = sin_h[b, r]
+            out[b, r, 0] = station * distance_scale - 1.0
+            left[b, r] = sy * c - sx * s
+            ahead[b, r] = sx * c + sy * s
+            out[b, r, 2] = energy[b, r] * energy_scale - 1.0
+            cue = station < dock if in_station else charging[b, r]
+            out[b, r, 3] = 1.0 if cue else -1.0
 
 
 @compiled(
