@@ -95,6 +95,16 @@ def bearing(
     return np.arctan2(dy * cos_h - dx * sin_h, dx * cos_h + dy * sin_h)
 
 
+def bearing_arguments(
+    dx: float, dy: float, cos_h: float, sin_h: float
+) -> tuple[float, float]:
+    """The two arguments of :func:`bearing`'s atan2 for one robot, by its
+    operations: the offset (dx, dy) rotated into the frame of a robot whose heading
+    has cosine ``cos_h`` and sine ``sin_h``. Compiled loops call it and leave the
+    atan2 to numpy (:mod:`sdbc_sim.compiled`)."""
+    return dy * cos_h - dx * sin_h, dx * cos_h + dy * sin_h
+
+
 def normalised_reading(d: np.ndarray, sensor_range: float) -> np.ndarray:
     """A distance as a reading in [-1, 1]: 2 d / range - 1, and 1 beyond range."""
     r = d * (2.0 / sensor_range) - 1.0
@@ -398,7 +408,8 @@ def neighbour_sectors(
 @compiled(
     "intp(float64[:, :, :], float64[:, ::1], float64[:, ::1], boolean[:, :, ::1], "
     "float64, float64, float64, float64[:, ::1], intp[::1], float64[::1], "
-    "float64[::1], float64[::1])"
+    "float64[::1], float64[::1])",
+    calls=(bearing_arguments,),
 )
 def _sensed_pairs(
     pos: np.ndarray,
@@ -444,8 +455,7 @@ def _sensed_pairs(
                 count += 1.0
                 reading = min(edge * scale - 1.0, 1.0)
                 rows[k] = t * n + i
-                left[k] = dy * c - dx * s
-                ahead[k] = dx * c + dy * s
+                left[k], ahead[k] = bearing_arguments(dx, dy, c, s)
                 readings[k] = max(reading, -1.0)
                 k += 1
             counts[t, i] = count

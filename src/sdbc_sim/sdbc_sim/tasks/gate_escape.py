@@ -60,6 +60,7 @@ from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     TWO_PI,
+    bearing_arguments,
     centroid_spread,
     distance_sum,
     neighbour_sectors,
@@ -404,7 +405,8 @@ class GateEscape(Task[GateEscapeTrials]):
 
 @compiled(
     "intp(float64[:, :, :], float64[:, :], float64[:, :], float64, float64, float64, "
-    "float64, float64[:, :, ::1], intp[::1], float64[::1], float64[::1])"
+    "float64, float64[:, :, ::1], intp[::1], float64[::1], float64[::1])",
+    calls=(bearing_arguments,),
 )
 def _gate_readings(
     pos: np.ndarray,
@@ -442,8 +444,7 @@ def _gate_readings(
             c = cos_h[t, i]
             s = sin_h[t, i]
             rows[k] = t * n + i
-            left[k] = gy * c - gx * s
-            ahead[k] = gx * c + gy * s
+            left[k], ahead[k] = bearing_arguments(gx, gy, c, s)
             k += 1
     return k
 

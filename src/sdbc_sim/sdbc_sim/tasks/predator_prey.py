@@ -71,7 +71,13 @@ import numpy as np
 
 from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
-from sdbc_sim.sensors import centroid_spread, distance_sum, robot_sum, wrap_angle
+from sdbc_sim.sensors import (
+    bearing_arguments,
+    centroid_spread,
+    distance_sum,
+    robot_sum,
+    wrap_angle,
+)
 from sdbc_sim.settings import PositiveFloat, PositiveInt, check, settings
 from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -431,7 +437,8 @@ TASK = PredatorPrey
 
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :], float64[:, :, ::1], "
-    "float64[:, :, ::1], float64[:, :, ::1])"
+    "float64[:, :, ::1], float64[:, :, ::1])",
+    calls=(bearing_arguments,),
 )
 def _seen_by_predators(
     pos: np.ndarray,
@@ -465,8 +472,7 @@ def _seen_by_predators(
                 dx = pos[t, j, 0] - px
                 dy = pos[t, j, 1] - py
                 dist[t, i, col] = np.sqrt(dx * dx + dy * dy)
-                left[t, i, col] = dy * c - dx * s
-                ahead[t, i, col] = dx * c + dy * s
+                left[t, i, col], ahead[t, i, col] = bearing_arguments(dx, dy, c, s)
                 col += 1
 
 

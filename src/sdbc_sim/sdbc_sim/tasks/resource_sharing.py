@@ -116,7 +116,7 @@ import numpy as np
 from sdbc_sim.arena import draw_team
 from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
-from sdbc_sim.sensors import neighbour_sectors
+from sdbc_sim.sensors import bearing_arguments, neighbour_sectors
 from sdbc_sim.settings import (
     Fraction,
     NonNegativeFloat,
@@ -517,7 +517,8 @@ class ResourceSharing(Task[ResourceSharingTrials]):
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :], float64[:, :], "
     "boolean[:, :], float64[::1], boolean, float64[:, :, :], float64[:, ::1], "
-    "float64[:, ::1])"
+    "float64[:, ::1])",
+    calls=(bearing_arguments,),
 )
 def _station_readings(
     pos: np.ndarray,
@@ -549,8 +550,7 @@ def _station_readings(
             c = cos_h[b, r]
             s = sin_h[b, r]
             out[b, r, 0] = station * distance_scale - 1.0
-            left[b, r] = sy * c - sx * s
-            ahead[b, r] = sx * c + sy * s
+            left[b, r], ahead[b, r] = bearing_arguments(sx, sy, c, s)
             out[b, r, 2] = energy[b, r] * energy_scale - 1.0
             cue = station < dock if in_station else charging[b, r]
             out[b, r, 3] = 1.0 if cue else -1.0
