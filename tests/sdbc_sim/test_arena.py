@@ -64,3 +64,8 @@ def test_compiled_wall_rays_equal_the_array_formulation(task: str | None) -> Non
     want = array_wall_rays(rays, *args)
     np.testing.assert_array_equal(rays.read(*args), want)
     assert (want == 1.0).any() and (want < 1.0).any() and (want == -1.0).any()
+    # Into the rays' columns of a wider array, the others left alone.
+    wide = np.full((b, n, rays.n_rays + 2), np.nan)
+    rays.read(*args, out=wide[..., 1 : 1 + rays.n_rays])
+    np.testing.assert_array_equal(wide[..., 1 : 1 + rays.n_rays], want)
+    assert np.isnan(wide[..., 0]).all() and np.isnan(wide[..., -1]).all()

@@ -171,7 +171,8 @@ def test_neighbour_sectors_equal_the_array_formulation(
     """To the bit, with robots on a unit grid (edge distances tie, fall exactly on
     the range, overlap, and bearings fall on sector borders), headings on
     multiples of pi / 4 and at random, a few trials off the grid, and the
-    visibility shared by every trial or given per trial."""
+    visibility shared by every trial or given per trial, with and without robots
+    switched off, into a new array and into the columns of a wider one."""
     rng = np.random.default_rng(n_sectors)
     b, n = 64, 5
     pos = rng.integers(0, 7, (b, n, 2)).astype(np.float64)
@@ -187,3 +188,29 @@ def test_neighbour_sectors_equal_the_array_formulation(
     np.testing.assert_array_equal(got_counts, want_counts)
     np.testing.assert_array_equal(got, want)
     assert (want == -1.0).any() and (want == 1.0).any() and (np.abs(want) < 1).any()
+
+    enabled = rng.random((b, n)) < 0.6
+    wide = np.full((b, n, n_sectors + 3), np.nan)
+    got, got_counts = neighbour_sectors(
+        *args, enabled=enabled, out=wide[..., 2 : 2 + n_sectors]
+    )
+    want, want_counts = array_neighbour_sectors(
+        *args[:-1], visible & enabled[:, None, :]
+    )
+    np.testing.assert_array_equal(got_counts, want_counts)
+    np.testing.assert_array_equal(wide[..., 2 : 2 + n_sectors], want)
+    assert np.isnan(wide[..., :2]).all() and np.isnan(wide[..., 2 + n_sectors :]).all()
+    assert not np.array_equal(want, array_neighbour_sectors(*args)[0])
+
+
+def test_neighbour_sectors_refuse_an_out_they_cannot_fill() -> None:
+    """An ``out`` of the wrong shape, or one whose rows cannot be filled in place
+    (a reshape would copy it, and the readings would be lost), is an error."""
+    b, n = 3, 4
+    args = (np.zeros((b, n, 2)), np.ones((b, n)), np.zeros((b, n)), 0.5, 3.0, 4)
+    visible = ~np.eye(n, dtype=bool)
+    with pytest.raises(ValueError, match="out has shape"):
+        neighbour_sectors(*args, visible, out=np.empty((b, n, 3)))
+    strided = np.empty((n, b, 4)).transpose(1, 0, 2)
+    with pytest.raises(ValueError, match="cannot be filled in place"):
+        neighbour_sectors(*args, visible, out=strided)

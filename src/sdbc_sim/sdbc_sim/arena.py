@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from sdbc_sim.compiled import compiled
-from sdbc_sim.sensors import TWO_PI, ray_distance
+from sdbc_sim.sensors import TWO_PI, ray_distance, row_view
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState
 
 MAX_START_DRAWS = 100_000
@@ -82,15 +82,26 @@ class WallRays:
         angles = -arc / 2.0 + arc * np.arange(n_rays)
         self._cos = np.cos(angles)
         self._sin = np.sin(angles)
+        reach = robot_radius + ray_range
+        x0, y0, x1, y1 = box
+        # Robots inside this box are beyond every ray's reach of the border.
+        self._inner = np.array([x0 + reach, y0 + reach, x1 - reach, y1 - reach])
 
     def read(
-        self, pos: np.ndarray, cos_heading: np.ndarray, sin_heading: np.ndarray
+        self,
+        pos: np.ndarray,
+        cos_heading: np.ndarray,
+        sin_heading: np.ndarray,
+        out: np.ndarray | None = None,
     ) -> np.ndarray:
         """(B, N, n_rays) readings of robots at ``pos`` (B, N, 2) with headings of
-        cosine and sine (B, N)."""
-        reach = self.robot_radius + self.ray_range
-        x0, y0, x1, y1 = self.box
-        out = np.empty((*cos_heading.shape, self.n_rays))
+        cosine and sine (B, N), written into ``out`` when given (such as the rays'
+        columns of a task's sensor array; see :func:`~sdbc_sim.sensors.row_view`)."""
+        shape = (*cos_heading.shape, self.n_rays)
+        if out is None:
+            out = np.empty(shape)
+        elif out.shape != shape:
+            raise ValueError(f"WallRays.read: out has shape {out.shape}, need {shape}")
         _wall_ray_readings(
             np.asarray(pos, dtype=np.float64).reshape(-1, 2),
             np.ascontiguousarray(cos_heading, dtype=np.float64).reshape(-1),
@@ -100,16 +111,16 @@ class WallRays:
             self.robot_radius,
             self.ray_range,
             2.0 / self.ray_range,
-            np.array([x0 + reach, y0 + reach, x1 - reach, y1 - reach]),
+            self._inner,
             self.walls,
-            out.reshape(-1, self.n_rays),
+            row_view(out, self.n_rays, "WallRays.read"),
         )
         return out
 
 
 @compiled(
     "void(float64[:, :], float64[::1], float64[::1], float64[::1], float64[::1], "
-    "float64, float64, float64, float64[::1], float64[:, :, ::1], float64[:, ::1])",
+    "float64, float64, float64, float64[::1], float64[:, :, ::1], float64[:, :])",
     calls=(ray_distance,),
 )
 def _wall_ray_readings(

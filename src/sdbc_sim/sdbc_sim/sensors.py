@@ -167,6 +167,7 @@ def sector_minimum(
     n_rows: int,
     n_arcs: int,
     empty: float = 1.0,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per-sector minimum of the readings of sensed objects, sparse form (only the
     sensed ones, cheaper when few are).
@@ -178,11 +179,20 @@ def sector_minimum(
         n_rows: Number of robots.
         n_arcs: Number of sectors (see :func:`arc_index`).
         empty: Value of a sector that senses nothing.
+        out: (n_rows, n_arcs) float64 array to fill, possibly a view into a wider
+            one (see :func:`row_view`); None for a new one.
 
     Returns:
-        (n_rows, n_arcs) minimum reading per robot and sector.
+        (n_rows, n_arcs) minimum reading per robot and sector (``out`` if given).
     """
-    out = np.full((n_rows, n_arcs), empty)
+    if out is None:
+        out = np.full((n_rows, n_arcs), empty)
+    elif out.shape != (n_rows, n_arcs):
+        raise ValueError(
+            f"sector_minimum: out has shape {out.shape}, need {(n_rows, n_arcs)}"
+        )
+    else:
+        out.fill(empty)
     width = TWO_PI / n_arcs
     _sector_minimum(
         np.ascontiguousarray(rows, dtype=np.intp),
@@ -195,8 +205,32 @@ def sector_minimum(
     return out
 
 
+def row_view(a: np.ndarray, width: int, name: str) -> np.ndarray:
+    """``a`` (..., width) as a (rows, width) view of the same memory, for a
+    compiled loop to fill ``a`` through. A slice of the last axis of a C-ordered
+    array qualifies (a task passes the columns of its sensor array), so the loop
+    writes the readings where they belong instead of into a temporary that is
+    then copied there.
+
+    Raises:
+        ValueError: If ``a`` is not float64 of that width, or its leading axes
+            cannot merge without a copy (the loop would fill the copy).
+    """
+    if a.dtype != np.float64 or a.shape[-1:] != (width,):
+        raise ValueError(
+            f"{name}: out must be float64 (..., {width}), got {a.dtype} {a.shape}"
+        )
+    flat = a.reshape(-1, width)
+    if flat.size and not np.may_share_memory(flat, a):
+        raise ValueError(
+            f"{name}: out of shape {a.shape} and strides {a.strides} cannot be "
+            "filled in place (its leading axes do not merge into one)"
+        )
+    return flat
+
+
 @compiled(
-    "void(intp[::1], float64[::1], float64[::1], float64, float64, float64[:, ::1])"
+    "void(intp[::1], float64[::1], float64[::1], float64, float64, float64[:, :])"
 )
 def _sector_minimum(
     rows: np.ndarray,
@@ -359,12 +393,15 @@ def neighbour_sectors(
     sensor_range: float,
     n_sectors: int,
     visible: np.ndarray,
+    *,
+    enabled: np.ndarray | None = None,
+    out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The nearest sensed robot's reading per sector, for every robot.
 
-    Robot i senses robot j when ``visible[b, i, j]`` and their edge-to-edge
-    distance d is at most ``sensor_range``; the reading is 2 d / range - 1 (at
-    least -1).
+    Robot i senses robot j when ``visible[b, i, j]`` and ``enabled[b, j]`` and
+    their edge-to-edge distance d is at most ``sensor_range``; the reading is
+    2 d / range - 1 (at least -1).
 
     Args:
         pos: (B, N, 2) centres.
@@ -373,10 +410,16 @@ def neighbour_sectors(
         sensor_range: Range, edge to edge.
         n_sectors: Sectors (see :func:`arc_index`).
         visible: (B, N, N) or (N, N) bool, which robots each robot may sense.
+        enabled: (B, N) bool, the robots that can be sensed at all (those not
+            switched off); None for all. Kept apart from ``visible`` so that a
+            task with a fixed ``visible`` need not combine the two at every step.
+        out: (B, N, n_sectors) float64 array to fill, such as the sectors'
+            columns of a task's sensor array (see :func:`row_view`); None for a
+            new one.
 
     Returns:
-        (B, N, n_sectors) readings, 1 where a sector senses nobody, and the
-        (B, N) number of robots each robot senses (as float64).
+        (B, N, n_sectors) readings, 1 where a sector senses nobody (``out`` if
+        given), and the (B, N) number of robots each robot senses (as float64).
     """
     b, n = cos_h.shape
     counts = np.empty((b, n))
@@ -385,11 +428,14 @@ def neighbour_sectors(
     left = np.empty(most)
     ahead = np.empty(most)
     readings = np.empty(most)
+    if enabled is None:
+        enabled = np.ones((1, n), dtype=np.bool_)
     k = _sensed_pairs(
         np.asarray(pos, dtype=np.float64),
         np.ascontiguousarray(cos_h, dtype=np.float64),
         np.ascontiguousarray(sin_h, dtype=np.float64),
         np.ascontiguousarray(visible, dtype=np.bool_).reshape(-1, n, n),
+        np.ascontiguousarray(enabled, dtype=np.bool_).reshape(-1, n),
         2.0 * robot_radius,
         sensor_range,
         2.0 / sensor_range,
@@ -399,16 +445,29 @@ def neighbour_sectors(
         ahead,
         readings,
     )
+    if out is None:
+        out = np.empty((b, n, n_sectors))
+    elif out.shape != (b, n, n_sectors):
+        raise ValueError(
+            f"neighbour_sectors: out has shape {out.shape}, need {(b, n, n_sectors)}"
+        )
     # bearing()'s atan2 stays in numpy (sdbc_sim.compiled), over the sensed pairs.
     bearings = np.arctan2(left[:k], ahead[:k])
-    sectors = sector_minimum(rows[:k], bearings, readings[:k], b * n, n_sectors)
-    return sectors.reshape(b, n, n_sectors), counts
+    sector_minimum(
+        rows[:k],
+        bearings,
+        readings[:k],
+        b * n,
+        n_sectors,
+        out=row_view(out, n_sectors, "neighbour_sectors"),
+    )
+    return out, counts
 
 
 @compiled(
     "intp(float64[:, :, :], float64[:, ::1], float64[:, ::1], boolean[:, :, ::1], "
-    "float64, float64, float64, float64[:, ::1], intp[::1], float64[::1], "
-    "float64[::1], float64[::1])",
+    "boolean[:, ::1], float64, float64, float64, float64[:, ::1], intp[::1], "
+    "float64[::1], float64[::1], float64[::1])",
     calls=(bearing_arguments,),
 )
 def _sensed_pairs(
@@ -416,6 +475,7 @@ def _sensed_pairs(
     cos_h: np.ndarray,
     sin_h: np.ndarray,
     visible: np.ndarray,
+    enabled: np.ndarray,
     gap: float,
     sensor_range: float,
     scale: float,
@@ -425,10 +485,12 @@ def _sensed_pairs(
     ahead: np.ndarray,
     readings: np.ndarray,
 ) -> int:  # pragma: no cover - compiled; tested through neighbour_sectors
-    """How many robots each robot senses ((B, N) ``counts``, summed in index
-    order as ``robot_sum`` does) and, for the K sensed pairs in row-major order,
-    the sensing robot's flat row, the offset rotated into its frame
-    (:func:`bearing`'s atan2 arguments) and the reading; returns K.
+    """How many robots each robot senses (j where ``visible[., i, j]`` and
+    ``enabled[., j]``, both of one row when shared by all trials; (B, N)
+    ``counts``, summed in index order as ``robot_sum`` does) and, for the K
+    sensed pairs in row-major order, the sensing robot's flat row, the offset
+    rotated into its frame (:func:`bearing`'s atan2 arguments) and the reading;
+    returns K.
 
     A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays this made
     (B, N, N) offsets, distances and masks and gathered them at every step; the
@@ -436,9 +498,11 @@ def _sensed_pairs(
     (``tests/sdbc_sim/test_sensors.py``)."""
     n = cos_h.shape[1]
     shared = visible.shape[0] == 1
+    all_enabled = enabled.shape[0] == 1
     k = 0
     for t in range(pos.shape[0]):
         v = 0 if shared else t
+        e = 0 if all_enabled else t
         for i in range(n):
             xi = pos[t, i, 0]
             yi = pos[t, i, 1]
@@ -449,7 +513,7 @@ def _sensed_pairs(
                 dx = pos[t, j, 0] - xi
                 dy = pos[t, j, 1] - yi
                 edge = np.sqrt(dx * dx + dy * dy) - gap
-                seen = edge <= sensor_range and visible[v, i, j]
+                seen = edge <= sensor_range and visible[v, i, j] and enabled[e, j]
                 if not seen:
                     continue
                 count += 1.0

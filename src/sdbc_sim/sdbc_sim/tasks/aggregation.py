@@ -234,11 +234,18 @@ class Aggregation(Task[AggregationTrials]):
         k = c.n_robot_arcs
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
-        out[..., :k], count = neighbour_sectors(
-            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, self._not_self
+        _, count = neighbour_sectors(
+            pos,
+            cos_h,
+            sin_h,
+            c.robot_radius,
+            c.robot_sensor_range,
+            k,
+            self._not_self,
+            out=out[..., :k],
         )
         out[..., k] = count * (2.0 / (n - 1)) - 1.0
-        out[..., k + 1 :] = self._wall_rays.read(pos, cos_h, sin_h)
+        self._wall_rays.read(pos, cos_h, sin_h, out=out[..., k + 1 :])
         return out
 
     def actuate(

@@ -332,10 +332,17 @@ class Foraging(Task[ForagingTrials]):
         out[..., 3] = bearing(nx, ny, cos_h, sin_h) / np.pi
         out[..., 4] = np.where(trials.load >= 0, 1.0, -1.0)
         k = c.n_robot_arcs
-        out[..., 5 : 5 + k], _ = neighbour_sectors(
-            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, self._not_self
+        neighbour_sectors(
+            pos,
+            cos_h,
+            sin_h,
+            c.robot_radius,
+            c.robot_sensor_range,
+            k,
+            self._not_self,
+            out=out[..., 5 : 5 + k],
         )
-        out[..., 5 + k :] = self._wall_rays.read(pos, cos_h, sin_h)
+        self._wall_rays.read(pos, cos_h, sin_h, out=out[..., 5 + k :])
         return out
 
     def actuate(

@@ -311,18 +311,19 @@ class GateEscape(Task[GateEscapeTrials]):
                 np.arctan2(left[:k], ahead[:k]) / np.pi
             )
         # Other robots still inside, edge to edge.
-        arcs, count = neighbour_sectors(
+        _, count = neighbour_sectors(
             pos,
             cos_h,
             sin_h,
             c.robot_radius,
             c.neighbour_range,
             c.n_robot_arcs,
-            self._not_self & bodies.enabled[:, None, :],
+            self._not_self,
+            enabled=bodies.enabled,
+            out=out[..., 3 : 3 + c.n_robot_arcs],
         )
         out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
-        out[..., 3 : 3 + c.n_robot_arcs] = arcs
-        out[..., 3 + c.n_robot_arcs :] = self._wall_rays.read(pos, cos_h, sin_h)
+        self._wall_rays.read(pos, cos_h, sin_h, out=out[..., 3 + c.n_robot_arcs :])
         return out
 
     def actuate(

@@ -391,8 +391,15 @@ class ResourceSharing(Task[ResourceSharingTrials]):
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         # Other robots, dead ones too (obstacles); only the few in range.
-        out[..., :k], _ = neighbour_sectors(
-            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, self._not_self
+        neighbour_sectors(
+            pos,
+            cos_h,
+            sin_h,
+            c.robot_radius,
+            c.robot_sensor_range,
+            k,
+            self._not_self,
+            out=out[..., :k],
         )
         left = np.empty((b, n))
         ahead = np.empty((b, n))
