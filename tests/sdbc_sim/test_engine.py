@@ -323,3 +323,55 @@ def test_state_after_all_but_one_trial_ended(placed) -> None:
             np.testing.assert_array_equal(agents.centres[1], np.array(start))
             assert agents.present[1].all() and agents.radii[1].tolist() == [2.5] * 4
     assert sim.length.tolist() == [86, 120]
+
+
+def array_drive(
+    sim: BatchSimulation, speed: np.ndarray, turn: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """BatchSimulation._drive as whole numpy arrays, with numpy's cosine and sine:
+    the form the compiled loop replaced, kept as its oracle. Returns the drive
+    rows, the turn rates and the cosines and sines of the new headings."""
+    physics = sim.settings.physics
+    col = sim.spaces.drive_columns
+    moving = sim.bodies.enabled & sim._running[:, None]
+    turn = turn * moving
+    heading = sim.bodies.angle + turn
+    cos, sin = np.cos(heading), np.sin(heading)
+    v = (speed * moving).reshape(-1)
+    drive = np.empty((v.shape[0], 4))
+    drive[:, col.angle] = heading.reshape(-1)
+    drive[:, col.angular_velocity] = 0.0
+    drive[:, col.x] = v * cos.reshape(-1)
+    drive[:, col.y] = v * sin.reshape(-1)
+    if physics.actuation == "force":
+        mass = sim.spaces.masses / physics.dt
+        drive[:, col.x] = (v * cos.reshape(-1) - sim._rows[:, 3]) * mass
+        drive[:, col.y] = (v * sin.reshape(-1) - sim._rows[:, 4]) * mass
+    return drive, turn / physics.dt, cos, sin
+
+
+@pytest.mark.parametrize("actuation", ["velocity", "force"])
+def test_compiled_drive_equals_the_array_formulation(actuation: str) -> None:
+    """To the bit (signs of zeros included), after some steps of a crowded gate
+    escape, with headings far from zero (cosines and sines taken after a long
+    argument reduction), bodies switched off and trials ended: their turns, of
+    either sign, become zeros."""
+    task = make_task("gate_escape", **CROWDED)
+    rng = np.random.default_rng(5)
+    b = 40
+    genomes = rng.uniform(-1.0, 1.0, (b, task.genome_length))
+    settings = model_settings("rigid", actuation=actuation)
+    sim = BatchSimulation(task, rng.integers(0, 2**31 - 1, b), genomes, settings)
+    for _ in range(5):
+        sim.step()
+    shape = sim.bodies.angle.shape
+    sim.bodies.angle[:] = rng.uniform(-2000.0, 2000.0, shape)
+    sim.bodies.enabled[:] = rng.random(shape) < 0.8
+    sim._running[: b // 4] = False
+    speed = rng.uniform(0.0, 2.0, shape)
+    turn = rng.uniform(-0.5, 0.5, shape)
+    want = array_drive(sim, speed, turn)
+    got = (sim._drive(speed, turn), sim._turn_rate, sim._cos, sim._sin)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g.view(np.int64), w.view(np.int64))
+    assert (want[1] == 0.0).any() and np.signbit(want[1][want[1] == 0.0]).any()

@@ -20,7 +20,11 @@ divisions, square roots and comparisons are the IEEE operations numpy does, and
 each loop does them in the order of the array formulation it replaces, so its
 results are the same to the bit (each module's tests keep that formulation as
 the oracle). Transcendental functions stay in numpy, whose implementations may
-differ from the ones numba calls in the last bit.
+differ from the ones numba calls in the last bit, with one exception: the drive
+(``sdbc_sim.engine._drive_rows``) takes each new heading's cosine and sine from
+the C library numba calls, the same glibc functions numpy's float64 ``cos`` and
+``sin`` call here (its test compares the two to the bit), because they were most
+of the drive's cost as whole arrays.
 """
 
 from __future__ import annotations

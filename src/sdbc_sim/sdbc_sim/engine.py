@@ -21,11 +21,13 @@ mean.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from sdbc_sim.compiled import compiled
 from sdbc_sim.kinematic import KinematicTrials
 from sdbc_sim.network import TeamNetworks, check_genomes
 from sdbc_sim.observer import NetworkObserver, Observer
@@ -279,28 +281,32 @@ class BatchSimulation:
         this step and moves with it during the next one (one step of delay).
         Bodies switched off and trials that have ended are brought to rest.
         """
-        dt = self.settings.physics.dt
+        physics = self.settings.physics
         col = self.spaces.drive_columns
-        moving = self.bodies.enabled & self._running[:, None]
-        turn = turn * moving
-        np.divide(turn, dt, out=self._turn_rate)
-        heading = self.bodies.angle + turn
-        # The physics keeps the heading set here as the state's angle, so these
-        # serve the next sensors too.
-        np.cos(heading, out=self._cos)
-        np.sin(heading, out=self._sin)
-        v = (speed * moving).reshape(-1)
         rows = self._rows
         drive = np.empty((rows.shape[0], WRITE_WIDTH))
-        drive[:, col.angle] = heading.reshape(-1)
-        drive[:, col.angular_velocity] = 0.0
-        if self.settings.physics.actuation == "velocity":
-            np.multiply(v, self._cos.reshape(-1), out=drive[:, col.x])
-            np.multiply(v, self._sin.reshape(-1), out=drive[:, col.y])
-        else:
-            mass = self.spaces.masses / dt
-            drive[:, col.x] = (v * self._cos.reshape(-1) - rows[:, 3]) * mass
-            drive[:, col.y] = (v * self._sin.reshape(-1) - rows[:, 4]) * mass
+        # The physics keeps the heading set here as the state's angle, so the
+        # cosines and sines serve the next sensors too.
+        _drive_rows(
+            self.bodies.angle,
+            np.asarray(speed, dtype=np.float64),
+            np.asarray(turn, dtype=np.float64),
+            self.bodies.enabled,
+            self._running,
+            physics.dt,
+            self._turn_rate,
+            self._cos,
+            self._sin,
+            drive,
+            col.angle,
+            col.angular_velocity,
+            col.x,
+            col.y,
+        )
+        if physics.actuation == "force":
+            mass = self.spaces.masses / physics.dt
+            drive[:, col.x] = (drive[:, col.x] - rows[:, 3]) * mass
+            drive[:, col.y] = (drive[:, col.y] - rows[:, 4]) * mass
         return drive
 
     def _compact_if_worthwhile(self) -> None:
@@ -367,6 +373,59 @@ class BatchSimulation:
             buf[self.live] = a
             out[name] = buf
         return GroupState(**out)
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :], float64[:, :], boolean[:, :], boolean[::1], "
+    "float64, float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+    "intp, intp, intp, intp)"
+)
+def _drive_rows(
+    angle: np.ndarray,
+    speed: np.ndarray,
+    turn: np.ndarray,
+    enabled: np.ndarray,
+    running: np.ndarray,
+    dt: float,
+    turn_rate: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    drive: np.ndarray,
+    col_angle: int,
+    col_angular_velocity: int,
+    col_x: int,
+    col_y: int,
+) -> None:  # pragma: no cover - compiled; tested against the numpy form
+    """:meth:`BatchSimulation._drive` for bodies (B, R): with m = 1 for a body
+    that is enabled in a running trial and 0 otherwise, the turn t m, the turn
+    rate t m / dt, the heading h = angle + t m and its cosine and sine, and the
+    drive row (h, 0, v cos h, v sin h) with v = speed m, the operations of the
+    array form (``tests/sdbc_sim/test_engine.py``) in its order.
+
+    Unlike the other loops (:mod:`sdbc_sim.compiled`), this one takes its cosine
+    and sine from the C library numba calls rather than from numpy: as whole
+    arrays they were most of the drive's cost, and on the platforms we build
+    for both call the same C library (glibc; the test compares them to the bit).
+    Every path to a heading's cosine after the first step goes through here, so
+    a trial alone, in a batch and live still agree whatever that library."""
+    n = angle.shape[1]
+    for t in range(angle.shape[0]):
+        run = running[t]
+        for i in range(n):
+            m = 1.0 if enabled[t, i] and run else 0.0
+            tm = turn[t, i] * m
+            turn_rate[t, i] = tm / dt
+            h = angle[t, i] + tm
+            c = math.cos(h)
+            s = math.sin(h)
+            cos_h[t, i] = c
+            sin_h[t, i] = s
+            v = speed[t, i] * m
+            row = t * n + i
+            drive[row, col_angle] = h
+            drive[row, col_angular_velocity] = 0.0
+            drive[row, col_x] = v * c
+            drive[row, col_y] = v * s
 
 
 @dataclass
