@@ -375,3 +375,32 @@ def test_compiled_drive_equals_the_array_formulation(actuation: str) -> None:
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(g.view(np.int64), w.view(np.int64))
     assert (want[1] == 0.0).any() and np.signbit(want[1][want[1] == 0.0]).any()
+
+
+def test_compiled_kinematics_equal_the_array_formulation() -> None:
+    """BodyState.kinematics to the bit against its array form (numpy's hypot)
+    on the engine's strided state views, with velocities at random and over many
+    scales, zeros of both signs, subnormals, infinities and NaN."""
+    task = make_task("gate_escape", **CROWDED)
+    rng = np.random.default_rng(9)
+    b = 30
+    genomes = rng.uniform(-1.0, 1.0, (b, task.genome_length))
+    sim = BatchSimulation(task, rng.integers(0, 2**31 - 1, b), genomes)
+    sim.step()
+    bodies = sim.bodies
+    shape = bodies.velocity.shape
+    v = rng.normal(0.0, 1.0, shape) * 10.0 ** rng.integers(-300, 300, shape)
+    special = np.array([0.0, -0.0, 5e-324, -1e-310, np.inf, -np.inf, np.nan, 1.0])
+    v.reshape(-1)[: 4 * special.size] = np.repeat(special, 4)
+    v.reshape(-1)[1 : 4 * special.size : 2] = np.tile(special, 2)
+    bodies.velocity[:] = v
+    bodies.angular_velocity[:] = rng.normal(0.0, 1.0, shape[:2])
+    got = bodies.kinematics(2)
+    want = np.empty_like(got)
+    want[..., 0:2] = bodies.position
+    want[..., 2] = bodies.angular_velocity
+    want[..., 3] = np.hypot(bodies.velocity[..., 0], bodies.velocity[..., 1])
+    np.testing.assert_array_equal(
+        got[..., :4].view(np.int64), want[..., :4].view(np.int64)
+    )
+    assert np.isinf(want[..., 3]).any() and np.isnan(want[..., 3]).any()

@@ -19,12 +19,13 @@ without fast-math: its additions, multiplications,
 divisions, square roots and comparisons are the IEEE operations numpy does, and
 each loop does them in the order of the array formulation it replaces, so its
 results are the same to the bit (each module's tests keep that formulation as
-the oracle). Transcendental functions stay in numpy, whose implementations may
-differ from the ones numba calls in the last bit, with one exception: the drive
-(``sdbc_sim.engine._drive_rows``) takes each new heading's cosine and sine from
-the C library numba calls, the same glibc functions numpy's float64 ``cos`` and
-``sin`` call here (its test compares the two to the bit), because they were most
-of the drive's cost as whole arrays.
+the oracle). Functions of the C maths library stay in numpy, whose
+implementations may differ from the ones numba calls in the last bit, with two
+exceptions where they were most of a step's cost as whole arrays: the drive
+(``sdbc_sim.engine._drive_rows``) takes each new heading's cosine and sine, and
+the task state (``sdbc_sim.task._kinematics``) each speed's ``hypot``, from the C
+library numba calls: the same glibc functions numpy's float64 ``cos``, ``sin``
+and ``hypot`` call here, which their tests compare to the bit.
 """
 
 from __future__ import annotations
