@@ -27,7 +27,8 @@ fd13449, this benchmark
 5. prints, per task, medians over the alternations of robot-steps per CPU-second
    (each process's own CPU time, the JVM's JIT and GC threads included) and per
    wall-second, and per model the medians of the per-alternation ratios
-   ours / MASE, bare and with the SDBC.
+   ours / MASE, bare and with the SDBC; then every alternation's ratio with the
+   SDBC, per CPU-second, with their minimum and maximum.
 
 MASE's robots are kinematic, as ``kinematic`` models them; ``rigid`` (our default)
 puts every contact through pymunk's solver.
@@ -386,6 +387,18 @@ def main() -> None:
         "the per-alternation ratios of our engine with that physics model to MASE, "
         "bare and with the SDBC)"
     )
+    # The spread says how far a median can be trusted: between runs on a shared
+    # machine the ratios themselves move.
+    print("\nper-alternation ratios to MASE with the SDBC, per CPU-second:")
+    for t in names:
+        for m in models:
+            ours, theirs = series[(t, f"{m}+sdbc")].cpu, series[(t, "mase+sdbc")].cpu
+            ratios = [a / b for a, b in zip(ours, theirs, strict=True)]
+            print(
+                f"{t:<17}{m:<10}"
+                + " ".join(f"{r:.2f}" for r in ratios)
+                + f"   (min {min(ratios):.2f}, max {max(ratios):.2f})"
+            )
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(
