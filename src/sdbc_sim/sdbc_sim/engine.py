@@ -402,10 +402,11 @@ def _drive_rows(
     drive row (h, 0, v cos h, v sin h) with v = speed m, the operations of the
     array form (``tests/sdbc_sim/test_engine.py``) in its order.
 
-    Unlike the other loops (:mod:`sdbc_sim.compiled`), this one takes its cosine
-    and sine from the C library numba calls rather than from numpy: as whole
-    arrays they were most of the drive's cost, and on the platforms we build
-    for both call the same C library (glibc; the test compares them to the bit).
+    Unlike most loops (:mod:`sdbc_sim.compiled` names the two exceptions), this
+    one takes its cosine and sine from the C library numba calls rather than from
+    numpy: as whole arrays they were most of the drive's cost, and on the
+    platforms we build for both call the same C library (glibc; the test compares
+    them to the bit).
     Every path to a heading's cosine after the first step goes through here, so
     a trial alone, in a batch and live still agree whatever that library."""
     n = angle.shape[1]
