@@ -188,6 +188,11 @@ def test_neighbour_sectors_equal_the_array_formulation(
     np.testing.assert_array_equal(got_counts, want_counts)
     np.testing.assert_array_equal(got, want)
     assert (want == -1.0).any() and (want == 1.0).any() and (np.abs(want) < 1).any()
+    if not per_trial:
+        # No visibility given: every robot but itself, as the tasks use it.
+        default, default_counts = neighbour_sectors(*args[:-1])
+        np.testing.assert_array_equal(default_counts, want_counts)
+        np.testing.assert_array_equal(default, want)
 
     enabled = rng.random((b, n)) < 0.6
     wide = np.full((b, n, n_sectors + 3), np.nan)

@@ -392,7 +392,7 @@ def neighbour_sectors(
     robot_radius: float,
     sensor_range: float,
     n_sectors: int,
-    visible: np.ndarray,
+    visible: np.ndarray | None = None,
     *,
     enabled: np.ndarray | None = None,
     out: np.ndarray | None = None,
@@ -409,7 +409,8 @@ def neighbour_sectors(
         robot_radius: Radius of every robot.
         sensor_range: Range, edge to edge.
         n_sectors: Sectors (see :func:`arc_index`).
-        visible: (B, N, N) or (N, N) bool, which robots each robot may sense.
+        visible: (B, N, N) or (N, N) bool, which robots each robot may sense;
+            None for every robot but itself.
         enabled: (B, N) bool, the robots that can be sensed at all (those not
             switched off); None for all. Kept apart from ``visible`` so that a
             task with a fixed ``visible`` need not combine the two at every step.
@@ -428,6 +429,8 @@ def neighbour_sectors(
     left = np.empty(most)
     ahead = np.empty(most)
     readings = np.empty(most)
+    if visible is None:
+        visible = ~np.eye(n, dtype=np.bool_)
     if enabled is None:
         enabled = np.ones((1, n), dtype=np.bool_)
     k = _sensed_pairs(

@@ -200,7 +200,6 @@ class Aggregation(Task[AggregationTrials]):
         self._wall_rays = WallRays(
             self.walls, self.extent, c.n_wall_rays, c.wall_ray_range, r
         )
-        self._not_self = ~np.eye(n, dtype=bool)
         self._present = np.ones((1, n), dtype=bool)
         self._radii = np.full((1, n), r)
         # u in units of 4 r^2 is sum |p_i - p_bar|^2 / (4 r^2); its bound and the
@@ -235,14 +234,7 @@ class Aggregation(Task[AggregationTrials]):
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         _, count = neighbour_sectors(
-            pos,
-            cos_h,
-            sin_h,
-            c.robot_radius,
-            c.robot_sensor_range,
-            k,
-            self._not_self,
-            out=out[..., :k],
+            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, out=out[..., :k]
         )
         out[..., k] = count * (2.0 / (n - 1)) - 1.0
         self._wall_rays.read(pos, cos_h, sin_h, out=out[..., k + 1 :])

@@ -265,7 +265,6 @@ class Foraging(Task[ForagingTrials]):
         self._wall_rays = WallRays(
             self.walls, self.extent, c.n_wall_rays, c.wall_ray_range, r
         )
-        self._not_self = ~np.eye(n, dtype=bool)
         self._present = np.ones((1, n), dtype=bool)
         self._radii = np.full((1, n), r)
         self._item_radii = np.full((1, m), c.item_radius)
@@ -339,7 +338,6 @@ class Foraging(Task[ForagingTrials]):
             c.robot_radius,
             c.robot_sensor_range,
             k,
-            self._not_self,
             out=out[..., 5 : 5 + k],
         )
         self._wall_rays.read(pos, cos_h, sin_h, out=out[..., 5 + k :])

@@ -241,7 +241,6 @@ class GateEscape(Task[GateEscapeTrials]):
         self._wall_rays = WallRays(
             self.walls, (0.0, 0.0, s, s), c.n_wall_rays, c.wall_ray_range, r
         )
-        self._not_self = ~np.eye(n, dtype=bool)
         self._radii = np.full((1, n), r)
         self._gate_segments = self.gate[None, None]
 
@@ -318,7 +317,6 @@ class GateEscape(Task[GateEscapeTrials]):
             c.robot_radius,
             c.neighbour_range,
             c.n_robot_arcs,
-            self._not_self,
             enabled=bodies.enabled,
             out=out[..., 3 : 3 + c.n_robot_arcs],
         )

@@ -351,7 +351,6 @@ class ResourceSharing(Task[ResourceSharingTrials]):
                 ),
             ),
         )
-        self._not_self = ~np.eye(n, dtype=bool)
         self._radii = np.full((1, n), r)
         self._station_centres = self.station_centre[None, None, :]
         self._station_radii = np.full((1, 1), c.station_radius)
@@ -392,14 +391,7 @@ class ResourceSharing(Task[ResourceSharingTrials]):
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         # Other robots, dead ones too (obstacles); only the few in range.
         neighbour_sectors(
-            pos,
-            cos_h,
-            sin_h,
-            c.robot_radius,
-            c.robot_sensor_range,
-            k,
-            self._not_self,
-            out=out[..., :k],
+            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, out=out[..., :k]
         )
         left = np.empty((b, n))
         ahead = np.empty((b, n))
