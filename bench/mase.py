@@ -274,9 +274,14 @@ def engine_batch(
     return int(r.length.sum()) * task.layout.n_bodies, cpu, wall
 
 
+def _ratios(ours: list[float], theirs: list[float]) -> list[float]:
+    """Ours / theirs, alternation by alternation."""
+    return [a / b for a, b in zip(ours, theirs, strict=True)]
+
+
 def _median_ratio(ours: list[float], theirs: list[float]) -> float:
     """Median over the alternations of ours / theirs."""
-    return statistics.median(a / b for a, b in zip(ours, theirs, strict=True))
+    return statistics.median(_ratios(ours, theirs))
 
 
 def main() -> None:
@@ -392,8 +397,7 @@ def main() -> None:
     print("\nper-alternation ratios to MASE with the SDBC, per CPU-second:")
     for t in names:
         for m in models:
-            ours, theirs = series[(t, f"{m}+sdbc")].cpu, series[(t, "mase+sdbc")].cpu
-            ratios = [a / b for a, b in zip(ours, theirs, strict=True)]
+            ratios = _ratios(series[(t, f"{m}+sdbc")].cpu, series[(t, "mase+sdbc")].cpu)
             print(
                 f"{t:<17}{m:<10}"
                 + " ".join(f"{r:.2f}" for r in ratios)
