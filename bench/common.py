@@ -1,11 +1,15 @@
 """Pieces the speed benchmarks share: random batches, physics overrides from the
-command line, and pinning to one core."""
+command line, pinning to one core, and loading one benchmark from another."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib.util
 import os
+import sys
+import types
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -119,3 +123,20 @@ def batch_arguments(
     if unknown:
         parser.error(f"unknown task(s) {unknown}; known: {sorted(known)}")
     return names, settings
+
+
+def bench_module(name: str) -> types.ModuleType:
+    """``bench/<name>.py`` loaded as the module ``bench_<name>``. A plain import
+    finds ``bench/profile.py`` only while bench/ comes before the standard library
+    on ``sys.path``, whose ``profile`` module has the same name."""
+    module_name = f"bench_{name}"
+    if module_name in sys.modules:
+        return sys.modules[module_name]
+    path = Path(__file__).with_name(f"{name}.py")
+    spec = importlib.util.spec_from_file_location(module_name, path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no benchmark {name!r} at {path}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module

@@ -13,15 +13,22 @@ trials with random genomes (uniform in [-1, 1]):
   chipmunk (same Spaces, same motion, same contacts), without sensors, network,
   rules, contact projection or observers. With ``--physics model=kinematic``, the
   time in the kinematic model's compiled loop instead.
+- physics: the floor plus the contact projection (``separate``: the contacts
+  read in bulk, overlapping bodies projected apart). The rigid model switches
+  chipmunk's own push-out off and projects overlaps itself (``sdbc_sim.physics``),
+  so this is everything the model does to move bodies and resolve their
+  contacts; when the floor got cheaper than the rest of the step, this is the
+  floor that still says what share of the step the physics takes.
 - ``--standalone-floor`` also steps fresh copies of the same Spaces with bulk
   transfer only, bodies at rest and bodies pushed at full speed along their
   headings (piling up on walls), as bounds on chipmunk's cost.
 
 Robot-steps count every body of every trial for every step it took. The last lines
-read ``TASK robot-steps/s=N naive=Rx floor=F`` with R = engine / naive and
+read ``TASK robot-steps/s=N naive=Rx floor=F physics=P`` with R = engine / naive,
 F = engine / floor (the share of the engine's time spent in chipmunk and bulk
-transfer). ``--physics NAME=VALUE`` sets a physics setting for engine, naive and
-floor alike. ``--sweep NAME=V1,V2,...`` also times the engine (best of
+transfer) and P = engine / physics (that share with the projection).
+``--physics NAME=VALUE`` sets a physics setting for engine, naive and floor alike.
+``--sweep NAME=V1,V2,...`` also times the engine (best of
 ``--repeat``) at each value of one physics setting, such as
 ``trials_per_space=125,250,500`` or ``hash_cell=8,16,32,64``: the defaults of
 those settings come from it.
@@ -49,37 +56,44 @@ from sdbc_sim.tasks import make_task
 
 
 class PhysicsClock:
-    """Times ``read`` and ``step`` of every physics model (bulk transfer and
-    chipmunk for the rigid model, the compiled loop for the kinematic one; a step
-    reads its state back itself) while ``on``."""
+    """Times, while ``on``, ``read`` and ``step`` of every physics model (bulk
+    transfer and chipmunk for the rigid model, the compiled loop for the kinematic
+    one; a step reads its state back itself) into ``seconds``, and its
+    ``separate`` (the contact projection) into ``projection``."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
+        self.projection = 0.0
         self.on = False
         self._saved = {
-            cls: (cls.read, cls.step) for cls in set(PHYSICS_MODELS.values())
+            cls: (cls.read, cls.step, cls.separate)
+            for cls in set(PHYSICS_MODELS.values())
         }
 
     def __enter__(self) -> PhysicsClock:
-        for cls, (read, step) in self._saved.items():
-            cls.read = self._timed(read)  # type: ignore[method-assign]
-            cls.step = self._timed(step)  # type: ignore[method-assign]
+        for cls, (read, step, separate) in self._saved.items():
+            cls.read = self._timed(read, "seconds")  # type: ignore[method-assign]
+            cls.step = self._timed(step, "seconds")  # type: ignore[method-assign]
+            cls.separate = self._timed(  # type: ignore[method-assign]
+                separate, "projection"
+            )
         return self
 
-    def _timed(self, method: Callable[..., None]) -> Callable[..., None]:
+    def _timed(self, method: Callable[..., None], into: str) -> Callable[..., None]:
         clock = self
 
         def timed(*args: Any) -> None:
             t0 = time.perf_counter()
             method(*args)
             if clock.on:
-                clock.seconds += time.perf_counter() - t0
+                setattr(clock, into, getattr(clock, into) + time.perf_counter() - t0)
 
         return timed
 
     def __exit__(self, *exc: object) -> None:
-        for cls, (read, step) in self._saved.items():
+        for cls, (read, step, separate) in self._saved.items():
             cls.read, cls.step = read, step  # type: ignore[method-assign]
+            cls.separate = separate  # type: ignore[method-assign]
 
 
 @dataclass
@@ -89,6 +103,7 @@ class Rates:
     engine: float
     naive: float
     floor: float
+    physics: float
     steps: int
 
 
@@ -105,7 +120,7 @@ def measure(
 
     The engine is :func:`sdbc_sim.run_batch`'s loop (a BatchSimulation of every
     trial, stepped until all have ended); the floor is the engine's own time in
-    bulk transfer and chipmunk steps.
+    bulk transfer and chipmunk steps, the physics that time and the projection's.
     """
     n_trials = seeds.shape[1]
     flat_g = np.repeat(genomes, n_trials, axis=0)
@@ -138,6 +153,7 @@ def measure(
         engine=steps * per_step / engine_s,
         naive=naive_steps * per_step / naive_s if naive_steps else float("nan"),
         floor=steps * per_step / clock.seconds,
+        physics=steps * per_step / (clock.seconds + clock.projection),
         steps=steps,
     )
 
@@ -199,7 +215,7 @@ def main() -> None:
         print(
             f"{name}: {n_trials} trials, {steps / n_trials:.0f} steps per trial; "
             f"robot-steps/s engine {engine:,.0f}, naive {naive:,.0f}, "
-            f"floor {floor:,.0f}"
+            f"floor {floor:,.0f}, physics {r.physics:,.0f}"
         )
         mean_steps = max(1, steps // n_trials)
         if args.standalone_floor:
@@ -221,7 +237,7 @@ def main() -> None:
                 print(f"  {setting}={value}: engine {rate:,.0f}, floor {f:,.0f}")
         lines.append(
             f"{name} robot-steps/s={engine:.0f} naive={engine / naive:.1f}x "
-            f"floor={engine / floor:.2f}"
+            f"floor={engine / floor:.2f} physics={engine / r.physics:.2f}"
         )
     print("\n".join(lines))
 

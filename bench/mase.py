@@ -28,7 +28,12 @@ fd13449, this benchmark
    (each process's own CPU time, the JVM's JIT and GC threads included) and per
    wall-second, and per model the medians of the per-alternation ratios
    ours / MASE, bare and with the SDBC; then every alternation's ratio with the
-   SDBC, per CPU-second, with their minimum and maximum.
+   SDBC, per CPU-second, with their minimum and maximum;
+6. says, per task and model, whether its median ratio with the SDBC reaches 1.0;
+   for one that stays short it profiles one more batch (``bench/profile.py``:
+   each part of our step in ns per robot-step) and prints it beside MASE's whole
+   step with the SDBC in the same unit (from MASE's median rate), which shows
+   where the difference lies (``--no-profile`` leaves the profiles out).
 
 MASE's robots are kinematic, as ``kinematic`` models them; ``rigid`` (our default)
 puts every contact through pymunk's solver.
@@ -44,7 +49,7 @@ of one run mean anything.
 
 Run: ``scripts/sdbc bench mase --mase PATH`` (options: ``--alternations``,
 ``--genomes``, ``--trials``, ``--task``, ``--model``, ``--core``, ``--seed``,
-``--json``).
+``--json``, ``--no-profile``).
 """
 
 from __future__ import annotations
@@ -61,7 +66,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from common import pin_to_core, random_batch
+from common import bench_module, pin_to_core, random_batch
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import EngineSettings, run_batch
 from sdbc_sim.physics import MODELS, PhysicsSettings
@@ -284,6 +289,42 @@ def _median_ratio(ours: list[float], theirs: list[float]) -> float:
     return statistics.median(_ratios(ours, theirs))
 
 
+def verdicts(
+    series: dict[tuple[str, str], Series],
+    names: list[str],
+    models: list[str],
+    profile_batch: tuple[int, int, int] | None,
+) -> None:
+    """Whether each task and model reaches MASE's speed with the SDBC (median
+    ratio per CPU-second >= 1.0); for one that does not, with ``profile_batch``
+    (genomes, trials per genome, seed), one more batch profiled part by part
+    beside MASE's whole step."""
+    print("\nwith the SDBC, per CPU-second (median ratio to MASE):")
+    short: list[tuple[str, str, float]] = []
+    for t in names:
+        mase = series[(t, "mase+sdbc")].cpu
+        for m in models:
+            r = _median_ratio(series[(t, f"{m}+sdbc")].cpu, mase)
+            verdict = "at least MASE's speed" if r >= 1.0 else "SHORT of MASE"
+            print(f"{t:<17}{m:<10}{r:.3f}  {verdict}")
+            if r < 1.0:
+                short.append((t, m, statistics.median(mase)))
+    if profile_batch is None:
+        return
+    genomes, trials, seed = profile_batch
+    profiler = bench_module("profile")
+    for t, m, mase_rate in short:
+        settings = EngineSettings(physics=PhysicsSettings(model=m))
+        p = profiler.profile_task(t, genomes, trials, None, seed, settings, True)
+        print(
+            f"\nwhy {t} ({m}) stays short: MASE's whole step with the SDBC took "
+            f"{1e9 / mase_rate:.0f} ns per robot-step (its median rate above); "
+            "ours, part by part, in one more batch (instrumented, so a little "
+            "slower than the runs above):"
+        )
+        print(profiler.report(p))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mase", type=Path, required=True, help="MASE checkout")
@@ -302,6 +343,11 @@ def main() -> None:
     parser.add_argument("--java", default="java")
     parser.add_argument("--javac", default="javac")
     parser.add_argument("--json", type=Path, help="also write every rate here")
+    parser.add_argument(
+        "--no-profile",
+        action="store_true",
+        help="no profile of a task whose median ratio with the SDBC is below 1.0",
+    )
     args = parser.parse_args()
     if args.alternations < 1:
         parser.error("--alternations must be >= 1")
@@ -403,6 +449,8 @@ def main() -> None:
                 + " ".join(f"{r:.2f}" for r in ratios)
                 + f"   (min {min(ratios):.2f}, max {max(ratios):.2f})"
             )
+    batch = (args.genomes, args.trials, args.seed)
+    verdicts(series, names, models, None if args.no_profile else batch)
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(

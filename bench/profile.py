@@ -242,8 +242,9 @@ def report(p: Profile) -> str:
     physics = p.seconds["chipmunk step"] + p.seconds["bulk transfer"]
     if physics > 0.0:
         lines.append(
-            f"  chipmunk + bulk transfer alone would run "
-            f"{p.robot_steps / physics:,.0f} robot-steps per CPU-second"
+            f"  chipmunk + bulk transfer alone: {1e9 * physics / p.robot_steps:.0f} "
+            f"ns per robot-step, {p.robot_steps / physics:,.0f} robot-steps per "
+            "CPU-second"
         )
     return "\n".join(lines)
 

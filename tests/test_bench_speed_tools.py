@@ -4,7 +4,6 @@ overrides are parsed and refused as the command line needs."""
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -15,11 +14,6 @@ BENCH = Path(__file__).resolve().parent.parent / "bench"
 # Appended, not prepended: bench/profile.py must not shadow the standard library's
 # profile module for the rest of the session, so it is loaded under its own name.
 sys.path.append(str(BENCH))
-_spec = importlib.util.spec_from_file_location("bench_profile", BENCH / "profile.py")
-assert _spec is not None and _spec.loader is not None
-engine_profile = importlib.util.module_from_spec(_spec)
-sys.modules["bench_profile"] = engine_profile  # dataclasses look their module up
-_spec.loader.exec_module(engine_profile)
 
 import common  # noqa: E402
 import engine as engine_bench  # noqa: E402
@@ -28,6 +22,8 @@ from sdbc_sim.engine import BatchSimulation, EngineSettings  # noqa: E402
 from sdbc_sim.kinematic import KinematicTrials  # noqa: E402
 from sdbc_sim.physics import PhysicsSettings, TrialSpaces  # noqa: E402
 from sdbc_sim.tasks import make_task  # noqa: E402
+
+engine_profile = common.bench_module("profile")
 
 
 def test_identity_finds_a_one_bit_change(tmp_path: Path) -> None:
@@ -72,7 +68,7 @@ def test_profile_times_the_kinematic_step_in_place_of_chipmunk() -> None:
 
 @pytest.mark.parametrize("model", ["rigid", "kinematic"])
 def test_engine_bench_floor_times_each_model(model: str) -> None:
-    saved = [(c.read, c.step) for c in (TrialSpaces, KinematicTrials)]
+    saved = [(c.read, c.step, c.separate) for c in (TrialSpaces, KinematicTrials)]
     task = make_task("gate_escape", max_steps=10)
     rng = np.random.default_rng(0)
     genomes = rng.uniform(-1.0, 1.0, (2, task.genome_length))
@@ -80,9 +76,12 @@ def test_engine_bench_floor_times_each_model(model: str) -> None:
     settings = common.engine_settings([f"model={model}"])
     rates = engine_bench.measure(task, genomes, seeds, settings, naive_trials=1)
     assert rates.steps == 4 * 10
-    # The floor is a part of the engine's own time: never slower than it.
-    assert np.isfinite(rates.floor) and rates.floor >= rates.engine
-    assert [(c.read, c.step) for c in (TrialSpaces, KinematicTrials)] == saved
+    # The floor is a part of the engine's own time, and of the physics' with the
+    # projection: never slower than either.
+    assert np.isfinite(rates.floor) and rates.floor >= rates.physics >= rates.engine
+    assert [
+        (c.read, c.step, c.separate) for c in (TrialSpaces, KinematicTrials)
+    ] == saved
 
 
 def test_physics_overrides() -> None:
@@ -110,3 +109,19 @@ def test_physics_sweep() -> None:
         common.physics_sweep(base, "cell=8")
     with pytest.raises(ValueError, match="power of two"):
         common.physics_sweep(base, "hash_cell=8,12")
+
+
+def test_mase_verdicts_name_each_task_short_of_mase(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    mase = common.bench_module("mase")
+    series = {
+        ("gate_escape", "mase+sdbc"): mase.Series(cpu=[2.0, 2.0, 2.0]),
+        ("gate_escape", "rigid+sdbc"): mase.Series(cpu=[1.8, 2.2, 1.9]),
+        ("predator_prey", "mase+sdbc"): mase.Series(cpu=[1.0, 1.0, 1.0]),
+        ("predator_prey", "rigid+sdbc"): mase.Series(cpu=[1.0, 1.1, 0.9]),
+    }
+    mase.verdicts(series, ["gate_escape", "predator_prey"], ["rigid"], None)
+    out = capsys.readouterr().out
+    assert "gate_escape      rigid     0.950  SHORT of MASE" in out
+    assert "predator_prey    rigid     1.000  at least MASE's speed" in out
