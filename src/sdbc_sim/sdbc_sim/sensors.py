@@ -15,6 +15,8 @@ range r reads ``2 d / r - 1`` in [-1, 1], and 1 when nothing is in range.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from sdbc_sim.compiled import compiled
@@ -430,9 +432,9 @@ def neighbour_sectors(
     ahead = np.empty(most)
     readings = np.empty(most)
     if visible is None:
-        visible = ~np.eye(n, dtype=np.bool_)
+        visible = _not_self(n)
     if enabled is None:
-        enabled = np.ones((1, n), dtype=np.bool_)
+        enabled = _everyone(n)
     k = _sensed_pairs(
         np.asarray(pos, dtype=np.float64),
         np.ascontiguousarray(cos_h, dtype=np.float64),
@@ -465,6 +467,23 @@ def neighbour_sectors(
         out=row_view(out, n_sectors, "neighbour_sectors"),
     )
     return out, counts
+
+
+# Left writable: numba types a read-only array apart, and the compiled loop's
+# signature names writable ones. Only neighbour_sectors hands them on, to that
+# loop, which reads them.
+@functools.cache
+def _not_self(n: int) -> np.ndarray:
+    """(N, N): every robot but itself, :func:`neighbour_sectors`' default
+    visibility, made once per team size rather than at every step."""
+    return ~np.eye(n, dtype=np.bool_)
+
+
+@functools.cache
+def _everyone(n: int) -> np.ndarray:
+    """(1, N): no robot switched off, :func:`neighbour_sectors`' default
+    ``enabled``."""
+    return np.ones((1, n), dtype=np.bool_)
 
 
 @compiled(
