@@ -219,7 +219,8 @@ class MessageSdbcExtractor:
                 if trial.unknown_geometry:
                     self._learn_geometries(trial, msg)
             trial.extractor.observe(task_state_from_msg(msg, trial.description))
-        except ValueError:
+        except Exception:
+            # Whatever failed (a MemoryError too), the trial is not left half fed.
             self._trials.pop(trial_id, None)
             raise
         trial.steps = step
@@ -237,6 +238,10 @@ class MessageSdbcExtractor:
             KeyError: If the trial is not open.
         """
         return self._vector(self._trials.pop(trial_id))
+
+    def discard(self, trial_id: int) -> None:
+        """Forgets a trial, open or not, without a vector."""
+        self._trials.pop(trial_id, None)
 
     def _vector(self, trial: _Trial) -> np.ndarray:
         self.last_dimension_names = tuple(trial.extractor.dimension_names)
