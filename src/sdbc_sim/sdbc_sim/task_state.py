@@ -11,9 +11,33 @@ entity slots are present in every trial, their attributes and their geometry. Th
 engine hands one to its observers after every step; a stream of
 ``sdbc_msgs/TaskState`` messages converts to the same arrays with a batch of one.
 
-Shapes use B for the number of trials, S for a group's ``max_size`` (entity slots), A
-for its number of attributes and P for the number of segments of a polygon.
-Coordinates are trial-local arena units.
+Shapes use B for the number of trials, S for a group's entity slots, A for its
+number of attributes and P for the number of segments of a polygon. Coordinates
+are trial-local arena units.
+
+The contract a task state keeps (:func:`validate_task_state` checks the shapes
+and dtypes; the SDBC extractor, with ``check_values``, the values):
+
+- **Slots.** A group's arrays hold S slots, ``max(min_size, 1) <= S <= max_size``;
+  slots beyond S are absent. The engine's tasks give every group S = max_size; a
+  message's arrays hold only its entities, so that the declared max_size costs
+  nothing until entities are present.
+- **Absent slots** (``present`` False) may hold anything in their attributes and
+  shapes, NaN included, in static groups as in moving ones, before a slot's entity
+  appears and after it leaves: nothing of them is read.
+- **Present slots** hold finite attributes and the shapes of their entity.
+- **Static groups**: an entity never moves, and a slot keeps its entity from the
+  first step it is present to the end of the trial (it may leave and come back,
+  at the same place). An observer may therefore read a static slot's shapes
+  once, at the first step it is present, and reuse them (the engine's SDBC
+  extractor does); a source whose slots change entities (a message packs the
+  present entities into its first slots) is read every step instead.
+- **dtypes** (:data:`DTYPE_RULE`): presence and ``active`` are bool; attributes
+  and shapes are float64 here. The SDBC takes any real dtype (float32, integers,
+  bool) and converts it to float64 once per step on entry
+  (:func:`real_task_state`), so that float32 arrays from JAX or torch give the
+  features of their float64 values; complex, object and other dtypes are refused
+  with the rule in the message.
 """
 
 from __future__ import annotations
@@ -51,8 +75,8 @@ class EntityGroupSpec:
         attributes: Names of the per-entity state attributes (kappa values), in the
             order they appear in :attr:`GroupState.attributes`.
         min_size: eta_min, the fewest entities the group can hold.
-        max_size: eta_max, the most entities the group can hold; also the number of
-            entity slots in the arrays.
+        max_size: eta_max, the most entities the group can hold; also the most
+            entity slots the arrays may have (the engine's have exactly as many).
         static: True if the group's entities never move. Static groups get no
             dispersion feature, and no distance feature to another static group.
             (``sdbc_msgs/EntityGroup`` calls it ``is_static``.)
@@ -158,9 +182,9 @@ class GroupState:
 
     Attributes:
         present: (B, S) bool. Which entity slots hold an entity at this step; the
-            group's size |g| is the row sum.
-        attributes: (B, S, A) float64. State attribute values; undefined where not
-            present.
+            group's size |g| is the row sum. S is at most the group's max_size.
+        attributes: (B, S, A) float64. State attribute values; anything (NaN
+            included) where not present.
         centres: (B, S, 2) float64 for circles and points; None for polygons.
         radii: (B, S) float64 for circles; None otherwise.
         segments: (B, S, P, 2, 2) float64 for polygons, each segment as its two end
@@ -203,6 +227,82 @@ class TaskState:
 
 _BOOL = np.dtype(np.bool_)
 _FLOAT = np.dtype(np.float64)
+_REAL_KINDS = "biuf"
+"""numpy dtype kinds of real numbers: bool, signed and unsigned integers, floats."""
+
+DTYPE_RULE = (
+    "presence and active are bool; attributes, centres, radii and segments are "
+    "real numbers, float64 or any real dtype (float32, integers, bool) that the "
+    "SDBC converts to float64 once per step on entry"
+)
+"""The dtypes a task state may have, as refusals state it."""
+
+
+def real_task_state(description: TaskDescription, state: TaskState) -> TaskState:
+    """``state`` with every attribute and shape array as float64: the same object
+    if they all are, else a copy whose arrays of another real dtype are converted
+    (anything numpy can read as an array, a JAX or torch CPU array included).
+
+    Raises:
+        ValueError: An array of a dtype that is not real (complex, object,
+            strings, dates), or a presence or ``active`` that is not bool, naming
+            the group, the array and :data:`DTYPE_RULE`.
+    """
+    if all(
+        type(array) is np.ndarray and array.dtype == _FLOAT
+        for group in state.groups
+        for array in (group.attributes, group.centres, group.radii, group.segments)
+        if array is not None
+    ) and all(
+        type(array) is np.ndarray and array.dtype == _BOOL
+        for array in (state.active, *(group.present for group in state.groups))
+    ):
+        return state
+    groups = []
+    for g, group in enumerate(state.groups):
+        spec = description.groups[g] if g < len(description.groups) else None
+        arrays = {
+            label: _real_array(description, state, spec, label, getattr(group, label))
+            for label in ("present", "attributes", "centres", "radii", "segments")
+        }
+        groups.append(GroupState(**arrays))  # type: ignore[arg-type]
+    active = _real_array(description, state, None, "active", state.active)
+    return TaskState(
+        step=state.step,
+        active=state.active if active is None else active,
+        groups=tuple(groups),
+    )
+
+
+def _real_array(
+    description: TaskDescription,
+    state: TaskState,
+    spec: EntityGroupSpec | None,
+    label: str,
+    value: object,
+) -> np.ndarray | None:
+    """One array of a state under :data:`DTYPE_RULE`: presence and ``active`` as
+    they are if bool, the others as float64 if real; None stays None (the
+    validation names a missing array)."""
+    if value is None:
+        return None
+    where = f"task {description.name!r}, step {state.step}"
+    where = where if spec is None else f"{where}, group {spec.name!r}"
+    try:
+        array = value if isinstance(value, np.ndarray) else np.asarray(value)
+    except (TypeError, ValueError) as error:
+        raise ValueError(
+            f"{where}: {label} is not an array ({error}); {DTYPE_RULE}"
+        ) from None
+    if label in ("active", "present"):
+        if array.dtype != _BOOL:
+            raise ValueError(f"{where}: {label} has dtype {array.dtype}; {DTYPE_RULE}")
+        return array
+    if array.dtype.kind not in _REAL_KINDS:
+        raise ValueError(
+            f"{where}: {label} has dtype {array.dtype}, not a real number; {DTYPE_RULE}"
+        )
+    return array if array.dtype == _FLOAT else array.astype(_FLOAT)
 
 
 def validate_task_state(
@@ -230,7 +330,7 @@ def validate_task_state(
             f"in the state, {len(description.groups)} in the description"
         )
     for spec, group in zip(description.groups, state.groups, strict=True):
-        size = spec.max_size
+        size = _slots(description, state, spec, group.present)
         _check_array(description, state, spec, "present", group.present, (size,))
         attributes_tail = (size, len(spec.attributes))
         _check_array(
@@ -246,6 +346,28 @@ def validate_task_state(
             _check_array(description, state, spec, "centres", group.centres, (size, 2))
             if spec.geometry is Geometry.CIRCLE:
                 _check_array(description, state, spec, "radii", group.radii, (size,))
+
+
+def _slots(
+    description: TaskDescription,
+    state: TaskState,
+    spec: EntityGroupSpec,
+    present: np.ndarray | None,
+) -> int:
+    """S, the slots of a group's arrays (its presence's last axis), checked to be
+    within ``max(min_size, 1)..max_size``; max_size when the presence has no
+    last axis (its own check then names the problem)."""
+    if not isinstance(present, np.ndarray) or present.ndim != 2:
+        return spec.max_size
+    slots = int(present.shape[1])
+    least = max(spec.min_size, 1)
+    if not least <= slots <= spec.max_size:
+        raise ValueError(
+            f"task {description.name!r}, step {state.step}, group {spec.name!r}: "
+            f"present has {slots} slots, expected {least} to {spec.max_size} "
+            "(min_size, or 1, to max_size)"
+        )
+    return slots
 
 
 def _check_array(
@@ -270,7 +392,8 @@ def _check_array(
         raise ValueError(f"{where}: {label} is missing")
     if array.dtype != expected:
         raise ValueError(
-            f"{where}: {label} has dtype {array.dtype}, expected {expected}"
+            f"{where}: {label} has dtype {array.dtype}, expected {expected} "
+            f"({DTYPE_RULE}: real_task_state converts)"
         )
     n_trials = state.active.shape[0]
     if array.ndim >= 1 and array.shape[1:] == tail:
@@ -278,7 +401,8 @@ def _check_array(
             f"{where}: {label} has {array.shape[0]} rows, expected {n_trials} (one "
             "per trial) or 1 (shared by every trial)"
         )
+    slots = "" if label == "present" else f" (S = {tail[0]} slots, as present has)"
     raise ValueError(
         f"{where}: {label} has shape {array.shape}, expected "
-        f"({state.active.shape[0]} or 1, {', '.join(map(str, tail))})"
+        f"({state.active.shape[0]} or 1, {', '.join(map(str, tail))}){slots}"
     )

@@ -7,9 +7,16 @@ builds the task description from a message. The simulator node publishes with it
 ``sdbc_evolution.sdbc.messages`` characterises a stream of messages with it, so that
 any ROS 2 system that publishes the task state gets SDBCs.
 
-A message lists only the entities present, in slot order; converting back fills the
-first |g| slots. The features do not depend on entity order (they are means over
-entities and pairs), so the vectors agree to round-off. Polygons of one group may
+A message lists only the entities present, in slot order; converting back gives
+each group as many slots as it has entities (one, absent, if it has none), so that
+the arrays follow the entities present and a declared ``max_size`` costs nothing.
+The features do not depend on entity order (they are means over entities and
+pairs), so the vectors agree to round-off.
+
+What a message may hold is bounded (:data:`LIMITS`, one place): a message over a
+limit is refused before anything is allocated for it, naming the limit and the
+value, so that no message, however large its declared sizes, costs more than the
+limits allow. Polygons of one group may
 have different numbers of segments in a message; the arrays pad shorter ones by
 repeating their last segment, which leaves every nearest-segment distance unchanged.
 
@@ -20,6 +27,7 @@ workspace.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -43,6 +51,78 @@ GEOMETRY_CODES: dict[Geometry, int] = {
     Geometry.POLYGON: 2,
 }
 GEOMETRY_OF_CODE: dict[int, Geometry] = {code: g for g, code in GEOMETRY_CODES.items()}
+
+
+@dataclass(frozen=True)
+class TaskStateLimits:
+    """The most a ``sdbc_msgs/TaskState`` stream may hold, and what a characteriser
+    keeps of it; every refusal names the limit (``limits.entities``) and the value.
+
+    Attributes:
+        groups: Entity groups in one message.
+        entities: Entities present in one message, all groups together: the
+            SDBC's pair lists grow as their square (dispersion and distances).
+        attributes: State attributes of one group.
+        segment_points: Segment end points of one polygon.
+        name_length: Characters of a task, group or attribute name.
+        open_trials: Trials a characteriser follows at once, per task.
+        tasks: Task names a characteriser keeps a description of; the one unused
+            longest is forgotten for a new one.
+        dropped: Dropped trials a characteriser remembers (to ignore their later
+            messages); the oldest is forgotten first.
+    """
+
+    groups: int = 64
+    entities: int = 1024
+    attributes: int = 256
+    segment_points: int = 1024
+    name_length: int = 256
+    open_trials: int = 256
+    tasks: int = 16
+    dropped: int = 4096
+
+
+LIMITS = TaskStateLimits()
+"""The limits in force."""
+
+
+def check_limits(msg: Any, limits: TaskStateLimits = LIMITS) -> None:
+    """Refuses a message over a limit of ``limits``, before reading its values.
+
+    Raises:
+        ValueError: Naming the limit, its value and what the message holds.
+    """
+    task = str(msg.task)
+    where = f"task {task[:40]!r}, trial {msg.trial_id}, step {msg.step}"
+
+    def refuse(limit: str, got: int, what: str) -> None:
+        raise ValueError(
+            f"{where}: {what} {got}, more than limits.{limit} = "
+            f"{getattr(limits, limit)}"
+        )
+
+    if len(task) > limits.name_length:
+        refuse("name_length", len(task), "task name of length")
+    if len(msg.groups) > limits.groups:
+        refuse("groups", len(msg.groups), "groups")
+    entities = 0
+    for group in msg.groups:
+        label = f"group {str(group.name)[:40]!r}"
+        if len(group.name) > limits.name_length:
+            refuse("name_length", len(group.name), f"{label}: name of length")
+        if len(group.attribute_names) > limits.attributes:
+            refuse("attributes", len(group.attribute_names), f"{label}: attributes")
+        for name in group.attribute_names:
+            if len(name) > limits.name_length:
+                refuse("name_length", len(name), f"{label}: attribute name of length")
+        entities += len(group.entities)
+        if entities > limits.entities:
+            refuse("entities", entities, f"{label}: entities in the message")
+        for entity in group.entities:
+            if len(entity.segments) > limits.segment_points:
+                refuse(
+                    "segment_points", len(entity.segments), f"{label}: segment points"
+                )
 
 
 def _trial_row(array: np.ndarray, index: int) -> np.ndarray:
@@ -136,6 +216,7 @@ def task_description_from_msg(
             geometry, if a group's entities disagree on it, or if the fields are not
             a valid description (min_size > max_size, duplicate names, ...).
     """
+    check_limits(msg)
     geometries = geometries or {}
     specs = []
     for group in msg.groups:
@@ -198,6 +279,7 @@ def task_state_from_msg(msg: Any, description: TaskDescription) -> TaskState:
             of an entity's state vector, its geometry, its segments, non-finite
             values).
     """
+    check_limits(msg)
     where = f"task {msg.task!r}, trial {msg.trial_id}, step {msg.step}"
     if len(msg.groups) != len(description.groups):
         raise ValueError(
@@ -215,12 +297,14 @@ def task_state_from_msg(msg: Any, description: TaskDescription) -> TaskState:
 
 def _group_from_msg(where: str, spec: EntityGroupSpec, group: Any) -> GroupState:
     entities = list(group.entities)
-    n, size, n_attributes = len(entities), spec.max_size, len(spec.attributes)
-    if not spec.min_size <= n <= size:
+    n, n_attributes = len(entities), len(spec.attributes)
+    if not spec.min_size <= n <= spec.max_size:
         raise ValueError(
             f"{where}, group {spec.name!r}: {n} entities, outside its limits "
-            f"[{spec.min_size}, {size}]"
+            f"[{spec.min_size}, {spec.max_size}]"
         )
+    # As many slots as entities: memory follows them, not max_size.
+    size = max(n, 1)
     code = GEOMETRY_CODES[spec.geometry]
     present = np.zeros((1, size), dtype=bool)
     present[0, :n] = True
@@ -273,7 +357,7 @@ def _segments(where: str, spec: EntityGroupSpec, entities: list[Any]) -> np.ndar
             )
         polygons.append(ends.reshape(-1, 2, 2))
     n_segments = max((p.shape[0] for p in polygons), default=1)
-    segments = np.zeros((1, spec.max_size, n_segments, 2, 2))
+    segments = np.zeros((1, max(len(entities), 1), n_segments, 2, 2))
     for s, polygon in enumerate(polygons):
         segments[0, s, : polygon.shape[0]] = polygon
         # Repeating the last segment leaves the nearest-segment distance unchanged.

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.characterise.aggregation import (
+from sdbc_evolution.sdbc.aggregation import (
     BINS_PER_FRAME,
     make_aggregator,
     mode_names,

@@ -8,7 +8,9 @@ characterisation per trial (:mod:`.aggregation`: means, finals, length), and, pe
 generation, standardises them (:mod:`.standardise`) and weights them by mutual
 information with fitness (:mod:`.weighting`, NS-SD+).
 
-Two ways in, one result: :class:`SdbcExtractor` observes the engine's batched
+One extractor, :class:`SdbcExtractor`, with the paper's configuration by default
+and any :class:`SdbcOptions` (aggregation modes, added feature kinds, ignored
+groups). Two ways in, one result: :class:`SdbcExtractor` observes the engine's batched
 arrays; :class:`.messages.MessageSdbcExtractor` reads ``sdbc_msgs/TaskState``
 streams. Typical use::
 
@@ -31,6 +33,7 @@ from sdbc_evolution.sdbc.features import (
     FeatureKind,
     behaviour_features,
 )
+from sdbc_evolution.sdbc.options import SdbcOptions
 from sdbc_evolution.sdbc.standardise import (
     Standardisation,
     StandardisationSettings,
@@ -48,6 +51,7 @@ __all__ = [
     "FeatureKind",
     "FeatureWeighting",
     "SdbcExtractor",
+    "SdbcOptions",
     "Standardisation",
     "StandardisationSettings",
     "TrialAggregator",

@@ -1,55 +1,84 @@
 """The SDBC extractor: an engine observer that turns task states into raw
-characterisations (steps 1 to 3 of the paper's workflow).
+characterisations (steps 1 to 3 of the paper's workflow), with the paper's
+configuration by default and any :class:`~.options.SdbcOptions`.
 
 Each step, :class:`StepFeatures` computes the behaviour features of every trial of the
-batch (eqs. 2 to 5) and a :class:`TrialAggregator` folds them into running sums,
-counts and last values. At the end, every trial has a raw characterisation of length
-``2 F + 1``, ``[means, finals, length]``, whose dimensions are named by
-:func:`dimension_names`: "Agent group size (M)", ..., "Gate is closing (F)", ...,
-"Simulation length".
+batch (eqs. 2 to 5, and those the options add) as sums and counts, and the options'
+aggregator (:mod:`.aggregation`; the paper's :class:`TrialAggregator` by default)
+folds them into running sums. With the paper's options every trial has a raw
+characterisation of length ``2 F + 1``, ``[means, finals, length]``, whose
+dimensions are named by :func:`dimension_names`: "Agent group size (M)", ...,
+"Gate is closing (F)", ..., "Simulation length".
 """
 
 from __future__ import annotations
 
 import numpy as np
-from sdbc_sim.task_state import TaskDescription, TaskState, validate_task_state
+from sdbc_sim.task_state import (
+    TaskDescription,
+    TaskState,
+    real_task_state,
+    validate_task_state,
+)
 
-from sdbc_evolution.sdbc.aggregation import TrialAggregator
+from sdbc_evolution.sdbc.aggregation import (
+    FINAL_SUFFIX,
+    LENGTH_NAME,
+    MEAN_SUFFIX,
+    ModeAggregator,
+    make_aggregator,
+    mode_names,
+)
 from sdbc_evolution.sdbc.features import StepFeatures, behaviour_features
+from sdbc_evolution.sdbc.options import PAPER, SdbcOptions
 
-MEAN_SUFFIX = "(M)"
-"""Marks a feature's mean over the trial, as in the paper's Table 2."""
-FINAL_SUFFIX = "(F)"
-"""Marks a feature's final value, as in the paper's Table 2."""
-LENGTH_NAME = "Simulation length"
-"""The last dimension: the trial length in steps."""
+__all__ = [
+    "FINAL_SUFFIX",
+    "LENGTH_NAME",
+    "MEAN_SUFFIX",
+    "SdbcExtractor",
+    "dimension_names",
+]
 
 
-def dimension_names(description: TaskDescription) -> tuple[str, ...]:
-    """The human name of every dimension of a task's raw characterisation, in order."""
-    names = [f.name for f in behaviour_features(description)]
-    return (
-        *(f"{n} {MEAN_SUFFIX}" for n in names),
-        *(f"{n} {FINAL_SUFFIX}" for n in names),
-        LENGTH_NAME,
-    )
+def dimension_names(
+    description: TaskDescription, options: SdbcOptions | None = None
+) -> tuple[str, ...]:
+    """The human name of every dimension of a task's raw characterisation, in
+    order, with ``options`` (the paper's by default).
+
+    Raises:
+        ValueError: If the options do not fit the task (naming the option).
+    """
+    options = options or PAPER
+    names = tuple(f.name for f in behaviour_features(description, options))
+    return mode_names(options.mode, options.frames, names)
 
 
 class SdbcExtractor:
     """Streams the task states of a batch into per-trial raw SDBC vectors.
 
+    The one SDBC extractor: the paper's configuration by default, any
+    :class:`SdbcOptions` otherwise; every option streams (per trial it keeps the
+    mode's running sums, never the trajectory) and runs the same compiled loops.
     It is an engine observer (:class:`sdbc_sim.observer.Observer`): the engine calls
     :meth:`start` once per batch and :meth:`observe` after every step; then
     :meth:`characterisations` gives the (B, D) raw vectors. It keeps O(B F) numbers,
-    never the trajectory, and can be reused for the next batch. The shapes of static
-    groups are read at a batch's first step only (static entities never move), unless
-    ``fixed_static_geometry`` is off.
+    never the trajectory, and can be reused for the next batch. The shapes of a
+    static group's slot are read at the first step the slot is present and reused
+    after (static entities never move), unless ``fixed_static_geometry`` is off.
+
+    Attributes and shapes of any real dtype (float32, integers, bool) are taken
+    and converted to float64 once per step on entry
+    (:func:`sdbc_sim.task_state.real_task_state`); other dtypes are refused with
+    the rule in the message.
 
     The engine keeps stepping a batch until its last trial ends; once few trials
     are left, only those are computed (gathered into a smaller batch), so the cost
     of a step follows the trials that take it, as the engine's does.
 
     Args:
+        options: How the SDBC is made (the paper's by default).
         check_values: Check, every step, that no present entity of an active trial
             has a NaN or infinite attribute or coordinate, and that every group's
             size is within its limits; off saves a few numpy reductions per step.
@@ -57,15 +86,17 @@ class SdbcExtractor:
             fraction of the batch (0 never, 1 always). Gathering them costs about
             what it saves at a quarter of the batch (measured at 2000 trials on the
             three tasks); at 5% it halves a step's cost.
-        fixed_static_geometry: Read static groups' shapes at the first step only
-            and reuse them slot by slot. True for the engine, whose slots keep their
-            entity; off for task states whose slots do not (a message packs the
-            entities present into its first slots, so a static group whose
-            membership changes moves its entities between slots).
+        fixed_static_geometry: Read a static group's shapes slot by slot at the
+            first step each slot is present and reuse them. True for the engine,
+            whose slots keep their entity; off for task states whose slots do not
+            (a message packs the entities present into its first slots, so a
+            static group whose membership changes moves its entities between
+            slots).
     """
 
     def __init__(
         self,
+        options: SdbcOptions | None = None,
         check_values: bool = True,
         compact_below: float = 0.25,
         fixed_static_geometry: bool = True,
@@ -74,11 +105,18 @@ class SdbcExtractor:
             raise ValueError(
                 f"SDBC extractor: compact_below {compact_below} must be in [0, 1]"
             )
+        if isinstance(options, bool):
+            # The first positional argument used to be check_values.
+            raise TypeError(
+                "SDBC extractor: options must be SdbcOptions or None; pass "
+                "check_values by keyword"
+            )
+        self.options = options or PAPER
         self.check_values = check_values
         self.compact_below = compact_below
         self.fixed_static_geometry = fixed_static_geometry
         self._features: StepFeatures | None = None
-        self._aggregator: TrialAggregator | None = None
+        self._aggregator: ModeAggregator | None = None
         self._step = 0
         # Set by start(); observe() and the results refuse to run before it.
         self._previous_active = np.zeros(0, dtype=bool)
@@ -87,10 +125,11 @@ class SdbcExtractor:
         """Prepares for a batch of ``n_trials`` trials of the described task."""
         if n_trials < 1:
             raise ValueError(f"SDBC extractor: n_trials {n_trials} < 1")
-        self._features = StepFeatures(
-            description, fixed_static_geometry=self.fixed_static_geometry
+        self._features = self._step_features(description)
+        options = self.options
+        self._aggregator = make_aggregator(
+            options.mode, options.frames, n_trials, self._features.n_features
         )
-        self._aggregator = TrialAggregator(n_trials, self._features.n_features)
         self._step = 0
         self._previous_active = np.ones(n_trials, dtype=bool)
 
@@ -103,13 +142,18 @@ class SdbcExtractor:
             ValueError: If the features differ.
         """
         features = self._started()
-        if behaviour_features(description) != features.features:
+        if behaviour_features(description, self.options) != features.features:
             raise ValueError(
                 f"SDBC extractor, task {description.name!r}: a new description must "
                 "keep the features of the old one"
             )
-        self._features = StepFeatures(
-            description, fixed_static_geometry=self.fixed_static_geometry
+        self._features = self._step_features(description)
+
+    def _step_features(self, description: TaskDescription) -> StepFeatures:
+        return StepFeatures(
+            description,
+            fixed_static_geometry=self.fixed_static_geometry,
+            options=self.options,
         )
 
     @property
@@ -120,14 +164,14 @@ class SdbcExtractor:
     @property
     def dimension_names(self) -> tuple[str, ...]:
         """Names of the D dimensions of :meth:`characterisations`."""
-        return dimension_names(self.description)
+        return dimension_names(self.description, self.options)
 
     def _started(self) -> StepFeatures:
         if self._features is None:
             raise RuntimeError("SDBC extractor: start() was not called")
         return self._features
 
-    def _aggregating(self) -> TrialAggregator:
+    def _aggregating(self) -> ModeAggregator:
         if self._aggregator is None:
             raise RuntimeError("SDBC extractor: start() was not called")
         return self._aggregator
@@ -138,6 +182,7 @@ class SdbcExtractor:
         aggregator = self._aggregating()
         description = features.description
         n_trials = aggregator.n_trials
+        state = real_task_state(description, state)
         validate_task_state(description, state, n_trials)
         if state.step != self._step + 1:
             raise ValueError(
@@ -197,7 +242,7 @@ class SdbcExtractor:
             )
         for spec, group in zip(description.groups, state.groups, strict=True):
             if spec.min_size in (0, spec.max_size):
-                # S = max_size slots, so only a lower limit can be broken, and
+                # At most max_size slots, so only a lower limit can be broken, and
                 # StepFeatures checks full groups (min_size = max_size) itself.
                 continue
             size = np.broadcast_to(
@@ -218,5 +263,6 @@ class SdbcExtractor:
         return self._aggregating().lengths
 
     def characterisations(self) -> np.ndarray:
-        """(B, D) raw characterisations ``[means, finals, length]`` so far."""
+        """(B, D) raw characterisations so far (the paper's: ``[means, finals,
+        length]``)."""
         return self._aggregating().result()

@@ -51,6 +51,10 @@ class Workspace:
             array = self._arrays[entry] = np.empty(shape, dtype)
         return array
 
+    def clear(self) -> None:
+        """Forgets every array (those handed out stay valid for their holders)."""
+        self._arrays.clear()
+
 
 @dataclass(frozen=True)
 class Discs:

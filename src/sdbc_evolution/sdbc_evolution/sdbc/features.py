@@ -16,8 +16,18 @@ step yields, group by group in the description's order:
 4. ``d(g, h) = sum_{e_i in g} sum_{e_j in h} f_D(e_i, e_j) / (|g| |h|)``, the mean
    distance to every later group h (eq. 5), unless both groups are static.
 
+With :class:`~.options.SdbcOptions`, groups may be left out (``ignore_groups``) and
+two kinds follow the paper's, in this order: the standard deviation of each state
+attribute over a moving group's entities (``state_deviation``) and the difference
+of the mean states of an attribute two groups share (``relations``). Every kind is
+declared here and only here: its :class:`FeatureKind`, its place in
+:func:`behaviour_features`, its name in :func:`feature_name` and its sum and count
+in :meth:`StepFeatures.compute`; the extractor, the aggregation and the naming of
+dimensions know features only as rows.
+
 A feature is NaN at a step where it is undefined: the means and distances of an empty
-group, the dispersion of a group with fewer than two entities.
+group, the dispersion of a group with fewer than two entities, a deviation of an
+empty group, a difference where either mean is undefined.
 
 :class:`StepFeatures` computes them all for a batch of trials, one compiled loop
 per feature (:mod:`.fused`) where the shapes are discs, or a few numpy operations
@@ -27,6 +37,7 @@ trials or entities.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
@@ -35,6 +46,7 @@ import numpy as np
 from sdbc_sim.sensors import axis_views
 from sdbc_sim.task_state import (
     EntityGroupSpec,
+    Geometry,
     GroupState,
     TaskDescription,
     TaskState,
@@ -53,6 +65,7 @@ from sdbc_evolution.sdbc.distance import (
     group_shapes,
     pick,
 )
+from sdbc_evolution.sdbc.options import PAPER, SdbcOptions
 
 
 class FeatureKind(str, Enum):
@@ -66,6 +79,12 @@ class FeatureKind(str, Enum):
     """D_g, eq. 4."""
     GROUP_DISTANCE = "group distance"
     """d(g, h), eq. 5."""
+    STATE_DEVIATION = "state deviation"
+    """The standard deviation (ddof 0) of one state attribute over the group's
+    present entities (option ``state_deviation``, the authors' later code)."""
+    RELATION = "relation"
+    """theta_g[a] - theta_h[a] for an attribute a of both groups (option
+    ``relations``, the paper's extension (i))."""
 
 
 @dataclass(frozen=True)
@@ -78,8 +97,10 @@ class BehaviourFeature:
         name: Human name, derived from the group and attribute names:
             "Agent group size", "Gate is closing", "Agent dispersion",
             "Predators-prey distance".
-        attribute: Index of the state attribute (MEAN_STATE only).
-        other: Index of the second group (GROUP_DISTANCE only), always > ``group``.
+        attribute: Index of the state attribute in ``group`` (MEAN_STATE,
+            STATE_DEVIATION, RELATION).
+        other: Index of the second group (GROUP_DISTANCE, RELATION), always
+            > ``group``.
     """
 
     kind: FeatureKind
@@ -90,10 +111,18 @@ class BehaviourFeature:
 
     @property
     def second_group(self) -> int:
-        """``other``, which a GROUP_DISTANCE feature always has."""
+        """``other``, which a GROUP_DISTANCE or RELATION feature always has."""
         if self.other is None:
             raise ValueError(f"feature {self.name!r} has no second group")
         return self.other
+
+    @property
+    def state_attribute(self) -> int:
+        """``attribute``, which a MEAN_STATE, STATE_DEVIATION or RELATION feature
+        always has."""
+        if self.attribute is None:
+            raise ValueError(f"feature {self.name!r} has no state attribute")
+        return self.attribute
 
 
 def _lower_initial(name: str) -> str:
@@ -112,19 +141,26 @@ def feature_name(
 ) -> str:
     """The human name of a feature: "<Group> group size", "<Group> <attribute>",
     "<Group> dispersion", "<Group>-<other group> distance" with the other group's
-    initial in lower case (the paper's "Predators-prey distance")."""
+    initial in lower case (the paper's "Predators-prey distance"), "<Group>
+    <attribute> deviation", "<Group>-<other group> <attribute> difference"."""
     spec = description.groups[group]
     if kind is FeatureKind.GROUP_SIZE:
         return f"{spec.name} group size"
-    if kind is FeatureKind.MEAN_STATE:
-        if attribute is None:
-            raise ValueError(f"feature of {spec.name!r}: a mean state needs attribute")
-        return f"{spec.name} {spec.attributes[attribute]}"
     if kind is FeatureKind.DISPERSION:
         return f"{spec.name} dispersion"
+    if kind in (FeatureKind.MEAN_STATE, FeatureKind.STATE_DEVIATION):
+        if attribute is None:
+            raise ValueError(f"feature of {spec.name!r}: {kind.value} needs attribute")
+        suffix = " deviation" if kind is FeatureKind.STATE_DEVIATION else ""
+        return f"{spec.name} {spec.attributes[attribute]}{suffix}"
     if other is None:
-        raise ValueError(f"feature of {spec.name!r}: a distance needs the other group")
-    return f"{spec.name}-{_lower_initial(description.groups[other].name)} distance"
+        raise ValueError(f"feature of {spec.name!r}: {kind.value} needs another group")
+    pair = f"{spec.name}-{_lower_initial(description.groups[other].name)}"
+    if kind is FeatureKind.GROUP_DISTANCE:
+        return f"{pair} distance"
+    if attribute is None:
+        raise ValueError(f"feature of {spec.name!r}: a relation needs attribute")
+    return f"{pair} {spec.attributes[attribute]} difference"
 
 
 def has_group_size(group: EntityGroupSpec) -> bool:
@@ -142,33 +178,91 @@ def has_group_distance(group: EntityGroupSpec, other: EntityGroupSpec) -> bool:
     return not (group.static and other.static)
 
 
-def behaviour_features(description: TaskDescription) -> tuple[BehaviourFeature, ...]:
-    """The per-step features of a task, in characterisation order.
+def has_state_deviation(group: EntityGroupSpec) -> bool:
+    """The deviation over entities is a behaviour: the group moves and can hold two
+    entities (as for eq. 4)."""
+    return has_dispersion(group)
+
+
+def _ignored(description: TaskDescription, options: SdbcOptions) -> set[int]:
+    known = [g.name for g in description.groups]
+    unknown = [name for name in options.ignore_groups if name not in known]
+    if unknown:
+        raise ValueError(
+            f"sdbc option ignore_groups: task {description.name!r} has no group "
+            f"{unknown}; its groups: {known}"
+        )
+    return {known.index(name) for name in options.ignore_groups}
+
+
+def behaviour_features(
+    description: TaskDescription, options: SdbcOptions | None = None
+) -> tuple[BehaviourFeature, ...]:
+    """The per-step features of a task, in characterisation order: the paper's
+    (eqs. 2 to 5, group by group), then the deviations, then the relations that
+    ``options`` adds (the paper's configuration by default).
 
     Raises:
         ValueError: If two features get the same name (for example a state attribute
             called "dispersion" or "group size", or two groups whose names differ only
-            in the case of their first letter).
+            in the case of their first letter), or if the options do not fit the
+            task (an unknown group to ignore, nothing left, no attribute to relate).
     """
-    features: list[BehaviourFeature] = []
+    options = options or PAPER
+    ignored = _ignored(description, options)
+    specs: list[tuple[FeatureKind, int, int | None, int | None]] = []
     groups = description.groups
-    for g, group in enumerate(groups):
-        specs: list[tuple[FeatureKind, int | None, int | None]] = []
+    kept = [g for g in range(len(groups)) if g not in ignored]
+    for g in kept:
+        group = groups[g]
         if has_group_size(group):
-            specs.append((FeatureKind.GROUP_SIZE, None, None))
+            specs.append((FeatureKind.GROUP_SIZE, g, None, None))
         specs.extend(
-            (FeatureKind.MEAN_STATE, a, None) for a in range(len(group.attributes))
+            (FeatureKind.MEAN_STATE, g, a, None) for a in range(len(group.attributes))
         )
         if has_dispersion(group):
-            specs.append((FeatureKind.DISPERSION, None, None))
+            specs.append((FeatureKind.DISPERSION, g, None, None))
         specs.extend(
-            (FeatureKind.GROUP_DISTANCE, None, h)
-            for h in range(g + 1, len(groups))
-            if has_group_distance(group, groups[h])
+            (FeatureKind.GROUP_DISTANCE, g, None, h)
+            for h in kept
+            if h > g and has_group_distance(group, groups[h])
         )
-        for kind, attribute, other in specs:
-            name = feature_name(description, kind, g, attribute, other)
-            features.append(BehaviourFeature(kind, g, name, attribute, other))
+    if ignored and not specs:
+        raise ValueError(
+            f"sdbc option ignore_groups: nothing is left of task {description.name!r}"
+        )
+    if options.state_deviation:
+        specs.extend(
+            (FeatureKind.STATE_DEVIATION, g, a, None)
+            for g in kept
+            if has_state_deviation(groups[g])
+            for a in range(len(groups[g].attributes))
+        )
+    if options.relations:
+        relations = [
+            (FeatureKind.RELATION, g, a, h)
+            for g in kept
+            for h in kept
+            if h > g
+            for a, attribute in enumerate(groups[g].attributes)
+            if attribute in groups[h].attributes
+        ]
+        if not relations:
+            raise ValueError(
+                f"sdbc option relations: task {description.name!r} has no state "
+                "attribute shared by two groups"
+            )
+        specs.extend(relations)
+    features = [
+        BehaviourFeature(
+            kind,
+            g,
+            feature_name(description, kind, g, attribute, other),
+            attribute,
+            other,
+        )
+        for kind, g, attribute, other in specs
+    ]
     names = [f.name for f in features]
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
@@ -245,6 +339,104 @@ def _radii(discs: Discs) -> np.ndarray:
     return loops.no_radius(discs.x.shape[0]) if discs.r is None else discs.r
 
 
+@functools.lru_cache(maxsize=32)
+def slot_pairs(first: int, second: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """The slot pairs i < j of ``first`` slots (``second`` None: eq. 4's), or every
+    pair of ``first`` slots with ``second`` slots in row-major order (eq. 5's).
+
+    Made for the slots a state's arrays hold (the engine's: max_size; a message's:
+    the entities present) when first met, and shared read-only by every extractor:
+    memory follows the entities, not the declared max_size, and a stream whose
+    group sizes change keeps a few dozen lists, not one per size ever seen.
+    """
+    if second is None:
+        i, j = np.triu_indices(first, k=1)
+        return np.ascontiguousarray(i, np.int64), np.ascontiguousarray(j, np.int64)
+    return loops.pair_slots(first, second)
+
+
+class _StaticShapes:
+    """A static group's shapes, read slot by slot at the first step each slot is
+    present and reused after: static entities never move, and what an absent slot
+    holds (NaN included) is never read (docs/method.md, "The task state")."""
+
+    def __init__(self, shapes: Shapes, known: np.ndarray) -> None:
+        self.shapes = shapes
+        self.known = known  # (S, B|1): slots whose shapes are read
+        self.complete = bool(known.all())
+
+    @staticmethod
+    def read(
+        group: GroupState, geometry: Geometry, presence: np.ndarray
+    ) -> _StaticShapes:
+        # A workspace of its own: the arrays belong to the cache.
+        shapes = group_shapes(group, geometry, Workspace(), "static")
+        return _StaticShapes(shapes, _StaticShapes._present(shapes, presence))
+
+    @staticmethod
+    def _present(shapes: Shapes, presence: np.ndarray) -> np.ndarray:
+        """(S, B|1) slots present, at the shapes' batch width: a row shared by
+        every trial is read once the slot is present in any trial."""
+        width = _batch_width(shapes)
+        if width == presence.shape[1]:
+            return presence.copy()
+        if width == 1:
+            return np.asarray(presence.any(axis=1, keepdims=True))
+        return np.broadcast_to(presence, (presence.shape[0], width)).copy()
+
+    def fits(self, group: GroupState, presence: np.ndarray) -> bool:
+        """The cache has the slots of ``group`` and no fewer trials."""
+        slots = presence.shape[0]
+        width = _batch_width(self.shapes)
+        source = group.segments if group.segments is not None else group.centres
+        rows = 1 if source is None else source.shape[0]
+        return self.known.shape[0] == slots and (rows == 1 or rows == width)
+
+    def update(
+        self, group: GroupState, geometry: Geometry, presence: np.ndarray, ws: Workspace
+    ) -> None:
+        """Reads the slots present for the first time."""
+        new = _StaticShapes._present(self.shapes, presence)
+        np.logical_and(new, np.logical_not(self.known), out=new)
+        if not new.any():
+            return
+        current = group_shapes(group, geometry, ws, "static update")
+        for cached, read in zip(_arrays(self.shapes), _arrays(current), strict=True):
+            np.copyto(cached, read, where=new)
+        self.known |= new
+        self.complete = bool(self.known.all())
+
+
+def _batch_width(shapes: Shapes) -> int:
+    return (shapes.x if isinstance(shapes, Discs) else shapes.ax).shape[-1]
+
+
+def _arrays(shapes: Shapes) -> tuple[np.ndarray, ...]:
+    if isinstance(shapes, Segments):
+        return shapes.arrays()
+    if shapes.r is None:
+        return shapes.x, shapes.y
+    return shapes.x, shapes.y, shapes.r
+
+
+def _deviation(group: GroupState, attribute: int, out: np.ndarray) -> np.ndarray:
+    """Writes into ``out`` (B,) the standard deviation (ddof 0) of one attribute
+    over each trial's present entities, 0 where none is present; returns where
+    it is defined."""
+    present, values = np.broadcast_arrays(
+        group.present, group.attributes[:, :, attribute]
+    )
+    n = present.sum(axis=1)
+    safe = np.where(present, values, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = safe.sum(axis=1) / n
+        spread = np.where(present, (values - mean[:, None]) ** 2, 0.0).sum(axis=1)
+        sd = np.sqrt(spread / n)
+    defined = np.asarray(n > 0)
+    np.copyto(out, np.where(defined, sd, 0.0))
+    return np.broadcast_to(defined, out.shape)
+
+
 def _zero_where(array: np.ndarray, mask: np.ndarray) -> None:
     """Sets ``array`` to 0 where the broadcast ``mask`` holds, in place.
 
@@ -290,34 +482,26 @@ class StepFeatures:
         fixed_static_geometry: bool = False,
         *,
         fused: bool = True,
+        options: SdbcOptions | None = None,
     ) -> None:
         self.description = description
-        self.features = behaviour_features(description)
+        self.options = options or PAPER
+        self.features = behaviour_features(description, self.options)
         self.fixed_static_geometry = fixed_static_geometry
         self.fused = fused
-        self._pairs = {
-            g: tuple(
-                np.ascontiguousarray(k, dtype=np.int64)
-                for k in np.triu_indices(group.max_size, k=1)
-            )
-            for g, group in enumerate(description.groups)
-            if has_dispersion(group)
-        }
-        self._slot_pairs = {
-            (f.group, f.second_group): loops.pair_slots(
-                description.groups[f.group].max_size,
-                description.groups[f.second_group].max_size,
-            )
-            for f in self.features
-            if f.kind is FeatureKind.GROUP_DISTANCE
-        }
+        self._slot_counts: tuple[int, ...] = ()
         self._full = tuple(g.min_size == g.max_size for g in description.groups)
         self._workspace = Workspace()
-        self._static_shapes: dict[int, Shapes] = {}
+        self._static: dict[int, _StaticShapes] = {}
         self._constant_counts = {
             f: c
             for f, feature in enumerate(self.features)
             if (c := self._constant_count(feature)) is not None
+        }
+        self._mean_rows = {
+            (feature.group, feature.state_attribute): f
+            for f, feature in enumerate(self.features)
+            if feature.kind is FeatureKind.MEAN_STATE
         }
         self._buffers_by_size: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -373,6 +557,8 @@ class StepFeatures:
         n = float(groups[feature.group].max_size)
         if feature.kind is FeatureKind.GROUP_SIZE:
             return 1.0
+        if feature.kind in (FeatureKind.STATE_DEVIATION, FeatureKind.RELATION):
+            return None
         if not self._full[feature.group]:
             return None
         if feature.kind is FeatureKind.MEAN_STATE:
@@ -401,6 +587,13 @@ class StepFeatures:
         groups = self.description.groups
         full = self._full
         ws = self._workspace
+        slot_counts = tuple(group.present.shape[1] for group in state.groups)
+        if slot_counts != self._slot_counts:
+            # The scratch arrays of other slot counts will not serve again soon:
+            # a message stream's counts follow its entities, and keeping an
+            # array for every count seen would grow without bound.
+            ws.clear()
+            self._slot_counts = slot_counts
         if trials is not None:
             state = self._gather(state, trials)
         total, count = self._buffers(state.active.shape[0])
@@ -442,18 +635,30 @@ class StepFeatures:
         def shape(g: int) -> Shapes:
             if g in shapes:
                 return shapes[g]
-            fixed = self.fixed_static_geometry and groups[g].static
-            cached = self._static_shapes.get(g) if fixed else None
-            if cached is not None and (trials is None or _shared(cached)):
-                shapes[g] = cached
-            elif fixed and trials is not None:
-                # Per-trial static shapes of some trials: from the gathered state.
-                shapes[g] = group_shapes(state.groups[g], groups[g].geometry, ws, g)
-            else:
-                key = ("static", g) if fixed else g
-                shapes[g] = group_shapes(state.groups[g], groups[g].geometry, ws, key)
-                if fixed:
-                    self._static_shapes[g] = shapes[g]
+            group, geometry = state.groups[g], groups[g].geometry
+            if not (self.fixed_static_geometry and groups[g].static):
+                shapes[g] = group_shapes(group, geometry, ws, g)
+                return shapes[g]
+            cache = self._static.get(g)
+            if trials is not None:
+                # Some trials only: the cache serves if it is complete and shared;
+                # otherwise the gathered state's present slots hold their shapes.
+                if (
+                    cache is not None
+                    and cache.complete
+                    and _batch_width(cache.shapes) == 1
+                ):
+                    shapes[g] = cache.shapes
+                else:
+                    shapes[g] = group_shapes(group, geometry, ws, ("static", g))
+                return shapes[g]
+            if cache is None or not cache.fits(group, presence(g)):
+                cache = self._static[g] = _StaticShapes.read(
+                    group, geometry, presence(g)
+                )
+            elif not cache.complete:
+                cache.update(group, geometry, presence(g), ws)
+            shapes[g] = cache.shapes
             return shapes[g]
 
         def reduce_into(f: int, d: np.ndarray, axes: tuple[int, ...]) -> None:
@@ -462,8 +667,11 @@ class StepFeatures:
             else:
                 total[f] = _slot_sum(d, axes)
 
+        def slots(g: int) -> int:
+            return int(state.groups[g].present.shape[1])
+
         def mask(g: int) -> np.ndarray:
-            return loops.none_absent(groups[g].max_size) if full[g] else absence(g)
+            return loops.none_absent(slots(g)) if full[g] else absence(g)
 
         fused = self.fused
         constant = self._constant_counts
@@ -487,7 +695,7 @@ class StepFeatures:
                     count[f] = size(g)
             elif feature.kind is FeatureKind.DISPERSION:
                 # Eq. 4 as the mean over unordered pairs i < j of present entities.
-                i, j = self._pairs[g]
+                i, j = slot_pairs(slots(g), None)
                 shapes_g = shape(g)
                 if not (
                     fused
@@ -511,10 +719,24 @@ class StepFeatures:
                 if not full[g]:
                     n = size(g)
                     count[f] = n * (n - 1.0) / 2.0
+            elif feature.kind is FeatureKind.STATE_DEVIATION:
+                defined = _deviation(state.groups[g], feature.state_attribute, total[f])
+                np.copyto(count[f], defined)
+            elif feature.kind is FeatureKind.RELATION:
+                h, attribute = feature.second_group, feature.state_attribute
+                f_g = self._mean_rows[g, attribute]
+                same = groups[h].attributes.index(spec.attributes[attribute])
+                f_h = self._mean_rows[h, same]
+                defined = (count[f_g] > 0) & (count[f_h] > 0)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    difference = total[f_g] / count[f_g] - total[f_h] / count[f_h]
+                # Undefined: 0 over a count of 0, as an empty group's sums are.
+                np.copyto(total[f], np.where(defined, difference, 0.0))
+                np.copyto(count[f], defined)
             else:
                 # Eq. 5: the mean over all pairs of present entities of g and h.
                 h = feature.second_group
-                first, second = self._slot_pairs[g, h]
+                first, second = slot_pairs(slots(g), slots(h))
                 a_shapes, b_shapes = shape(g), shape(h)
                 if not (
                     fused
@@ -539,6 +761,20 @@ class StepFeatures:
                     count[f] = size(g) * size(h)
         return total, count
 
+    def _check_full(self, state: TaskState, g: int) -> None:
+        present = state.groups[g].present
+        if present.shape[0] == 1:
+            missing = not present.all()
+        else:
+            missing = not np.logical_or(present, ~state.active[:, None]).all()
+        if missing:
+            spec = self.description.groups[g]
+            raise ValueError(
+                f"task {self.description.name!r}, step {state.step}: group "
+                f"{spec.name!r} (min_size = max_size = {spec.max_size}) misses an "
+                "entity in an active trial"
+            )
+
     def _mean_state_totals(
         self,
         state: TaskState,
@@ -557,20 +793,6 @@ class StepFeatures:
             _slot_sum(values, (1,), rows)
         else:
             rows[...] = _slot_sum(values, (1,))
-
-    def _check_full(self, state: TaskState, g: int) -> None:
-        present = state.groups[g].present
-        if present.shape[0] == 1:
-            missing = not present.all()
-        else:
-            missing = not np.logical_or(present, ~state.active[:, None]).all()
-        if missing:
-            spec = self.description.groups[g]
-            raise ValueError(
-                f"task {self.description.name!r}, step {state.step}: group "
-                f"{spec.name!r} (min_size = max_size = {spec.max_size}) misses an "
-                "entity in an active trial"
-            )
 
     def values(self, state: TaskState) -> np.ndarray:
         """The (B, F) feature values of one step, NaN where undefined."""
