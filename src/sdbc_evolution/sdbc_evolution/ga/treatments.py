@@ -48,7 +48,12 @@ from sdbc_evolution.characterise.registry import (
 from sdbc_evolution.characterise.registry import parse as parse_characterisation
 from sdbc_evolution.ga.archive import NoveltyArchive
 from sdbc_evolution.ga.novelty import NoveltyConfig, novelty_scores
-from sdbc_evolution.ga.rankings import NoOptions, RankingSpec, parse_ranking
+from sdbc_evolution.ga.rankings import (
+    NoOptions,
+    RankingContext,
+    RankingSpec,
+    parse_ranking,
+)
 from sdbc_evolution.sdbc.declared import at
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
@@ -321,7 +326,9 @@ def score_generation(
     raw = behaviour_vectors(treatment, evaluation)
     if raw is None:
         order, front = treatment.ranking.rank(
-            fitness, None, None, None, None, novelty.k, novelty.tie_break
+            RankingContext(
+                fitness, None, None, None, None, novelty.k, novelty.tie_break, rng
+            )
         )
         return GenerationScores(
             order=order,
@@ -345,13 +352,16 @@ def score_generation(
     archive_fitness = archive.fitness.copy()
     archived = archive.offer(raw, fitness, generation, rng)
     order, front = treatment.ranking.rank(
-        fitness,
-        scores,
-        transformed.population,
-        transformed.archive,
-        archive_fitness,
-        novelty.k,
-        novelty.tie_break,
+        RankingContext(
+            fitness=fitness,
+            novelty=scores,
+            population=transformed.population,
+            archive=transformed.archive,
+            archive_fitness=archive_fitness,
+            k=novelty.k,
+            tie_break=novelty.tie_break,
+            rng=rng,
+        )
     )
     return GenerationScores(
         order=order,
