@@ -28,7 +28,7 @@ to_plain round-trip.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any, ClassVar, Generic, Self, TypeVar, cast
@@ -215,6 +215,9 @@ class Registry(Generic[P]):
 
     def __contains__(self, name: object) -> bool:
         return isinstance(name, str) and name in self.names()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.names())
 
     def all(self) -> Iterable[Registered[P]]:
         """Every registered part, entry points loaded (the first that does not
