@@ -275,6 +275,8 @@ class OptionedSdbcExtractor:
 class SdbcCharacteriser(Characteriser):
     """The SDBC of every controller: the mean over its trials of the trial vectors."""
 
+    options_class = SdbcOptions
+
     def __init__(self, options: SdbcOptions | None = None) -> None:
         self.options = options or SdbcOptions()
         self.extractor: Any = (

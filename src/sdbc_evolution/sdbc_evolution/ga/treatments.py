@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.parts import at
 from sdbc_sim.settings import SettingsError, check
 
 from sdbc_evolution.characterise.evaluation import Evaluation
@@ -54,7 +55,6 @@ from sdbc_evolution.ga.rankings import (
     RankingSpec,
     parse_ranking,
 )
-from sdbc_evolution.sdbc.declared import at
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 from sdbc_evolution.transforms.pipeline import (
