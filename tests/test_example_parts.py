@@ -7,15 +7,13 @@ touched."""
 from __future__ import annotations
 
 import csv
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 import yaml
-from test_examples import fingerprint
+from test_examples import fingerprint, install_copy
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "07_own_parts"
@@ -26,31 +24,7 @@ PARTS = ("ranking:stochastic_ranking", "characterisation:final_position")
 def installed(tmp_path_factory: pytest.TempPathFactory):
     """The example installed from a copy; yields (environment, copy)."""
     before = fingerprint(EXAMPLE, ROOT / "src")
-    tmp = tmp_path_factory.mktemp("parts")
-    copy = tmp / "07_own_parts"
-    shutil.copytree(EXAMPLE, copy)
-    site = tmp / "site"
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--no-deps",
-            "--no-index",
-            "--no-build-isolation",
-            "--target",
-            str(site),
-            str(copy),
-        ],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(site), *(p for p in sys.path if p)])
-    yield env, copy
+    yield install_copy(EXAMPLE, tmp_path_factory.mktemp("parts"))
     assert fingerprint(EXAMPLE, ROOT / "src") == before
 
 
