@@ -33,9 +33,14 @@ from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any, ClassVar, Generic, Self, TypeVar, cast
 
-from sdbc_sim.settings import SettingsError, is_settings, load
+from sdbc_sim.settings import SettingsError, is_settings, load, settings
 
 P = TypeVar("P")
+
+
+@settings
+class NoOptions:
+    """This part has no options of its own."""
 
 
 class PartError(ValueError):

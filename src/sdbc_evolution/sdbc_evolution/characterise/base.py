@@ -15,12 +15,7 @@ from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
 import numpy as np
-from sdbc_sim.settings import settings
-
-
-@settings
-class NoOptions:
-    """This characterisation has no options."""
+from sdbc_sim.parts import NoOptions
 
 
 class Characteriser(ABC):

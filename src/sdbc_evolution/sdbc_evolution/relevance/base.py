@@ -7,14 +7,9 @@ from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
 import numpy as np
-from sdbc_sim.settings import settings
+from sdbc_sim.parts import NoOptions
 
 from sdbc_evolution.sdbc.weighting import WeightingSettings
-
-
-@settings
-class NoOptions:
-    """This measure has no options beyond the run's ``weighting`` section."""
 
 
 class RelevanceMeasure(ABC):

@@ -8,15 +8,10 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from sdbc_sim.settings import settings
+from sdbc_sim.parts import NoOptions
 
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
-
-
-@settings
-class NoOptions:
-    """This transform has no options of its own."""
 
 
 @dataclass(frozen=True)

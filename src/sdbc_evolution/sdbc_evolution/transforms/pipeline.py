@@ -32,7 +32,6 @@ from sdbc_evolution.relevance.measures import RelevanceSpec, parse_relevance
 from sdbc_evolution.sdbc.standardise import StandardisationSettings, standardise
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 from sdbc_evolution.transforms.base import (
-    NoOptions,
     Transform,
     TransformContext,
     TransformStep,
@@ -43,7 +42,9 @@ ENTRY_POINT_GROUP = "sdbc.transforms"
 
 
 class Standardise(Transform):
-    """Z-scores against population + archive, clipped (paper)."""
+    """Z-scores against population + archive, clipped (paper).
+
+    Its settings are the run's ``standardisation`` section, not options."""
 
     def apply(
         self, population: np.ndarray, archive: np.ndarray, context: TransformContext
@@ -55,10 +56,6 @@ def _canonical_relevance(value: Any) -> Any:
     # Kept as its canonical declaration, so that options compare (and round-trip)
     # by meaning: {mi: {}} is mi.
     return parse_relevance(value, "").to_plain()
-
-
-StandardiseOptions = NoOptions
-"""Standardisation takes its settings from the run's ``standardisation``."""
 
 
 @settings

@@ -12,12 +12,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
-from sdbc_sim.settings import settings
-
-
-@settings
-class NoOptions:
-    """This ranking has no options."""
+from sdbc_sim.parts import NoOptions
 
 
 class Ranked(NamedTuple):
