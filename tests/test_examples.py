@@ -32,13 +32,11 @@ def fingerprint(*folders: Path) -> dict[str, str]:
     }
 
 
-@pytest.fixture(scope="module")
-def installed(tmp_path_factory: pytest.TempPathFactory):
-    """The example installed from a copy; yields (environment, copy)."""
-    before = fingerprint(EXAMPLE, ROOT / "src")
-    tmp = tmp_path_factory.mktemp("example")
-    copy = tmp / "01_custom_task"
-    shutil.copytree(EXAMPLE, copy)
+def install_copy(example: Path, tmp: Path) -> tuple[dict[str, str], Path]:
+    """``example`` copied into ``tmp`` and installed from the copy into
+    ``tmp/site`` (pip --target, no index); returns (environment, copy)."""
+    copy = tmp / example.name
+    shutil.copytree(example, copy)
     site = tmp / "site"
     subprocess.run(
         [
@@ -61,7 +59,14 @@ def installed(tmp_path_factory: pytest.TempPathFactory):
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(site), *(p for p in sys.path if p)])
     env["ROS_HOME"] = str(tmp / "ros_home")
-    yield env, copy
+    return env, copy
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory: pytest.TempPathFactory):
+    """The example installed from a copy; yields (environment, copy)."""
+    before = fingerprint(EXAMPLE, ROOT / "src")
+    yield install_copy(EXAMPLE, tmp_path_factory.mktemp("example"))
     assert fingerprint(EXAMPLE, ROOT / "src") == before
 
 

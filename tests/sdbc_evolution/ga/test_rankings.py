@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sdbc_evolution.ga.rankings import parse_ranking
+from sdbc_evolution.ga.rankings import RankingContext, parse_ranking
 from sdbc_evolution.ga.rankings.nsga2 import nsga2_order
 from sdbc_evolution.ga.rankings.others import local_competition
 from sdbc_sim.settings import SettingsError
@@ -16,7 +16,7 @@ NOVELTY = np.array([3.0, 1.0, 2.0, 0.5, 4.0])
 def rank(declaration, fitness=FITNESS, novelty=NOVELTY, **kwargs):
     defaults = {"population": None, "archive": None, "archive_fitness": None}
     defaults.update(kwargs)
-    order, front = parse_ranking(declaration).rank(
+    context = RankingContext(
         fitness,
         novelty,
         defaults["population"],
@@ -24,7 +24,9 @@ def rank(declaration, fitness=FITNESS, novelty=NOVELTY, **kwargs):
         defaults["archive_fitness"],
         k=2,
         tie_break="crowding",
+        rng=np.random.default_rng(0),
     )
+    order, front = parse_ranking(declaration).rank(context)
     return order.tolist(), front.tolist()
 
 

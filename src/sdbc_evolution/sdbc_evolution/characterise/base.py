@@ -1,5 +1,7 @@
 """What a characteriser is: an engine observer that turns a batch's trials into
-per-controller behaviour vectors with named dimensions.
+per-controller behaviour vectors with named dimensions. It is a part
+(:mod:`sdbc_sim.parts`): made from its options (``options_class``), registered in
+:mod:`.registry` or by an entry point of the group ``sdbc.characterisations``.
 
 A characteriser is built fresh for every batch (chunk) a worker evaluates. Those
 that observe the engine are handed to ``run_batch`` as observers; those that also
@@ -10,17 +12,29 @@ need the robots' network inputs and outputs implement ``observe_network``
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
+from sdbc_sim.parts import NoOptions
 
 
 class Characteriser(ABC):
-    """Produces one characterisation of every controller of a batch."""
+    """Produces one characterisation of every controller of a batch.
 
+    Class attributes:
+        options_class: Its options (a settings class, every option defaulted).
+        needs_network: It reads the robots' network inputs and outputs
+            (``observe_network``), which a task-state stream does not carry.
+    """
+
+    options_class: ClassVar[type] = NoOptions
+    needs_network: ClassVar[bool] = False
     observes: bool = True
     """Whether ``run_batch`` should hand it the task states (and, with
     ``observe_network``, the network arrays)."""
+
+    def __init__(self, options: Any = None) -> None:
+        self.options = self.options_class() if options is None else options
 
     def start(self, description: Any, n_trials: int) -> None:
         """Called by the engine before a batch (an observer's first call)."""

@@ -1,73 +1,43 @@
-"""Every characterisation kind, registered in one place, and how a declaration
-names one.
+"""Every characterisation, registered in one place (:data:`CHARACTERISATIONS`, open
+to the entry point group ``sdbc.characterisations``), and how a declaration names
+one.
 
-A characterisation is declared by its kind alone (``sdbc``) or by a mapping of the
-kind to its options (``{sdbc: {aggregation: {frames: 5}}}``); :func:`parse`
-turns either into a :class:`CharacterisationSpec`, refusing unknown kinds and bad
-options with a message naming the part. A spec's :attr:`~CharacterisationSpec.key`
-names its behaviour arrays in an evaluation: the kind for default options, the kind
-and its non-default options otherwise (``sdbc{aggregation={frames=5}}``).
+A characterisation is declared by its name alone (``sdbc``) or by a mapping of the
+name to its options (``{sdbc: {aggregation: {frames: 5}}}``); :func:`parse` turns
+either into a :class:`CharacterisationSpec`, refusing unknown names and bad options
+with a message naming the part. A spec's :attr:`~CharacterisationSpec.key` names its
+behaviour arrays in an evaluation: the name for default options, the name and its
+non-default options otherwise (``sdbc{aggregation={frames=5}}``).
 
-Adding a characterisation means one class (a :class:`~.base.Characteriser`) and one
-entry in :data:`KINDS`; nothing downstream knows which exist.
+Adding a characterisation means one part (a :class:`~.base.Characteriser` with its
+``options_class``) and one registration, here or by an entry point; nothing
+downstream knows which exist.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from sdbc_sim.parts import PartSpec, Registry, changed_options
+
 from sdbc_evolution.characterise.base import Characteriser
 from sdbc_evolution.characterise.evaluation import SDBC, TASK
-from sdbc_evolution.characterise.sdbc import SdbcCharacteriser, SdbcOptions
-from sdbc_evolution.characterise.sensor_effector import (
-    SensorEffectorMean,
-    SensorEffectorMeanOptions,
-    StateCount,
-    StateCountOptions,
+from sdbc_evolution.characterise.sdbc import SdbcCharacteriser
+from sdbc_evolution.characterise.sensor_effector import SensorEffectorMean, StateCount
+from sdbc_evolution.characterise.task import TaskCharacteriser
+
+ENTRY_POINT_GROUP = "sdbc.characterisations"
+"""Entry point group of characterisations from other distributions."""
+
+CHARACTERISATIONS: Registry[Characteriser] = Registry(
+    "characterisation", ENTRY_POINT_GROUP, Characteriser
 )
-from sdbc_evolution.characterise.task import TaskCharacteriser, TaskOptions
-from sdbc_evolution.sdbc.declared import changed_options, declared_part
-
-
-@dataclass(frozen=True)
-class Kind:
-    """A registered characterisation kind.
-
-    Attributes:
-        options: Its options dataclass (defaults: the kind's reference settings).
-        build: Makes a fresh characteriser (one per batch) from options.
-        needs_network: It reads the robots' network inputs and outputs, which a
-            task-state stream does not carry.
-        summary: One line for listings and errors.
-    """
-
-    options: type
-    build: Callable[[Any], Characteriser]
-    needs_network: bool
-    summary: str
-
-
-KINDS: dict[str, Kind] = {
-    TASK: Kind(
-        TaskOptions, TaskCharacteriser, False, "the task's own characterisation"
-    ),
-    SDBC: Kind(SdbcOptions, SdbcCharacteriser, False, "the SDBC (paper's defaults)"),
-    "state_count": Kind(
-        StateCountOptions,
-        StateCount,
-        True,
-        "sensor-effector state count (Gomes & Christensen 2013)",
-    ),
-    "sensor_effector_mean": Kind(
-        SensorEffectorMeanOptions,
-        SensorEffectorMean,
-        True,
-        "mean sensor and effector values over the trial",
-    ),
-}
-"""Every characterisation kind, by name."""
+"""Every characterisation, by name."""
+CHARACTERISATIONS.register(TASK, TaskCharacteriser)
+CHARACTERISATIONS.register(SDBC, SdbcCharacteriser)
+CHARACTERISATIONS.register("state_count", StateCount)
+CHARACTERISATIONS.register("sensor_effector_mean", SensorEffectorMean)
 
 
 def _compact(value: Any) -> str:
@@ -81,50 +51,41 @@ def _compact(value: Any) -> str:
 
 
 @dataclass(frozen=True)
-class CharacterisationSpec:
-    """A declared characterisation: a kind and its options."""
+class CharacterisationSpec(PartSpec[Characteriser]):
+    """A declared characterisation: its name and options."""
 
-    kind: str
-    options: Any
+    registry = CHARACTERISATIONS
+
+    @property
+    def kind(self) -> str:
+        """Its registered name."""
+        return self.name
 
     @property
     def key(self) -> str:
         """Names this characterisation's arrays in an evaluation."""
         changed = changed_options(self.options)
-        return self.kind + (_compact(changed) if changed else "")
+        return self.name + (_compact(changed) if changed else "")
 
     @property
     def needs_network(self) -> bool:
         """Whether it reads network inputs and outputs."""
-        return KINDS[self.kind].needs_network
-
-    def build(self) -> Characteriser:
-        """A fresh characteriser (for one batch)."""
-        return KINDS[self.kind].build(self.options)
-
-    def to_plain(self) -> str | dict[str, Any]:
-        """The declaration, YAML-ready: the kind alone for default options."""
-        changed = changed_options(self.options)
-        return {self.kind: changed} if changed else self.kind
+        return self.registered.part.needs_network
 
 
 def parse(declaration: Any, where: str = "characterisation") -> CharacterisationSpec:
-    """A spec from ``kind`` or ``{kind: {option: value, ...}}``.
+    """A spec from ``name`` or ``{name: {option: value, ...}}``.
 
     Raises:
-        SettingsError: Unknown kind or bad options, naming ``where`` and the
+        SettingsError: Unknown name or bad options, naming ``where`` and the
             option.
     """
-    if isinstance(declaration, CharacterisationSpec):
-        return declaration
-    options = {kind: k.options for kind, k in KINDS.items()}
-    kind, chosen = declared_part(declaration, options, "characterisation", where)
-    return CharacterisationSpec(kind, chosen)
+    return CharacterisationSpec.parse(declaration, where)
 
 
-PAPER_SDBC = CharacterisationSpec(SDBC, SdbcOptions())
+PAPER_SDBC = CharacterisationSpec.parse(SDBC)
 """The paper's SDBC."""
-TASK_SPECIFIC = CharacterisationSpec(TASK, TaskOptions())
+TASK_SPECIFIC = CharacterisationSpec.parse(TASK)
 """The task-specific characterisation."""
 ALWAYS = (TASK_SPECIFIC, PAPER_SDBC)
 """Characterisations every evaluation carries (the run's outputs hold both)."""

@@ -45,6 +45,8 @@ class OptionedSdbcExtractor(SdbcExtractor):
 class SdbcCharacteriser(Characteriser):
     """The SDBC of every controller: the mean over its trials of the trial vectors."""
 
+    options_class = SdbcOptions
+
     def __init__(self, options: SdbcOptions | None = None) -> None:
         self.options = options or SdbcOptions()
         # Runs check nothing per step: the engine's tasks are checked by the

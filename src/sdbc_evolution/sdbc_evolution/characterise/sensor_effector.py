@@ -59,7 +59,10 @@ def discretise(values: np.ndarray, low: float, high: float, levels: int) -> np.n
 
 
 class StateCount(Characteriser):
-    """Sensor-effector state counts per trial (see the module docstring)."""
+    """Sensor-effector state count (Gomes & Christensen 2013)."""
+
+    options_class = StateCountOptions
+    needs_network = True
 
     def __init__(self, options: StateCountOptions | None = None) -> None:
         self.options = options or StateCountOptions()
@@ -128,7 +131,10 @@ class StateCount(Characteriser):
 
 
 class SensorEffectorMean(Characteriser):
-    """Mean of every sensor and effector value over a trial's steps and robots."""
+    """Mean sensor and effector values over the trial's steps and robots."""
+
+    options_class = SensorEffectorMeanOptions
+    needs_network = True
 
     def __init__(self, options: SensorEffectorMeanOptions | None = None) -> None:
         self.options = options or SensorEffectorMeanOptions()

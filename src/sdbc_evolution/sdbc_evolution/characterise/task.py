@@ -18,6 +18,7 @@ class TaskOptions:
 class TaskCharacteriser(Characteriser):
     """The task's own characterisation, each value in [0, 1], mean over trials."""
 
+    options_class = TaskOptions
     observes = False
 
     def __init__(self, options: TaskOptions | None = None) -> None:

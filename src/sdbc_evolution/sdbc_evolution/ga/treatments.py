@@ -37,25 +37,19 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.parts import at
 from sdbc_sim.settings import SettingsError, check
 
 from sdbc_evolution.characterise.evaluation import Evaluation
-from sdbc_evolution.characterise.registry import (
-    PAPER_SDBC,
-    TASK_SPECIFIC,
-    CharacterisationSpec,
-)
+from sdbc_evolution.characterise.registry import CharacterisationSpec
 from sdbc_evolution.characterise.registry import parse as parse_characterisation
 from sdbc_evolution.ga.archive import NoveltyArchive
 from sdbc_evolution.ga.novelty import NoveltyConfig, novelty_scores
-from sdbc_evolution.ga.rankings import NoOptions, RankingSpec, parse_ranking
-from sdbc_evolution.sdbc.declared import at
+from sdbc_evolution.ga.rankings import RankingContext, RankingSpec, parse_ranking
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
 from sdbc_evolution.sdbc.weighting import WeightingSettings
 from sdbc_evolution.transforms.pipeline import (
-    StandardiseOptions,
     TransformSpec,
-    WeightOptions,
     apply_transforms,
     parse_transforms,
 )
@@ -245,21 +239,8 @@ def parse_treatment(value: Any, where: str = "") -> TreatmentSpec:
 
 
 for _name, _declaration in PRESET_DECLARATIONS.items():
-    PRESETS[_name] = TreatmentSpec(
-        name=_name,
-        characterisation=None
-        if _declaration["characterisation"] is None
-        else {"task": TASK_SPECIFIC, "sdbc": PAPER_SDBC}[
-            _declaration["characterisation"]
-        ],
-        transforms=tuple(
-            TransformSpec(
-                t, StandardiseOptions() if t == "standardise" else WeightOptions()
-            )
-            for t in _declaration["transforms"]
-        ),
-        ranking=RankingSpec(_declaration["ranking"], NoOptions()),
-    )
+    # The presets are read from their declarations, as any treatment is.
+    PRESETS[_name] = _build(_name, _declaration, "")
 
 
 @dataclass
@@ -321,7 +302,9 @@ def score_generation(
     raw = behaviour_vectors(treatment, evaluation)
     if raw is None:
         order, front = treatment.ranking.rank(
-            fitness, None, None, None, None, novelty.k, novelty.tie_break
+            RankingContext(
+                fitness, None, None, None, None, novelty.k, novelty.tie_break, rng
+            )
         )
         return GenerationScores(
             order=order,
@@ -345,13 +328,16 @@ def score_generation(
     archive_fitness = archive.fitness.copy()
     archived = archive.offer(raw, fitness, generation, rng)
     order, front = treatment.ranking.rank(
-        fitness,
-        scores,
-        transformed.population,
-        transformed.archive,
-        archive_fitness,
-        novelty.k,
-        novelty.tie_break,
+        RankingContext(
+            fitness=fitness,
+            novelty=scores,
+            population=transformed.population,
+            archive=transformed.archive,
+            archive_fitness=archive_fitness,
+            k=novelty.k,
+            tie_break=novelty.tie_break,
+            rng=rng,
+        )
     )
     return GenerationScores(
         order=order,

@@ -23,9 +23,11 @@ hand-written estimator:
   (iii): weighting that removes redundancy). I(k; j) uses the features'
   discretisation of ``mi``.
 
-Each measure draws exactly one integer from the run's generator (for k-means and
-shuffles), whether or not it uses it, so that the generator's stream does not depend
-on the measure's internals.
+Each is a part (:class:`~.base.RelevanceMeasure`, registered in :data:`MEASURES`,
+open to the entry point group ``sdbc.relevance``). :meth:`RelevanceSpec.compute`
+draws exactly one integer from the run's generator (for k-means and shuffles) and
+hands it to the measure as its seed, whether or not it uses it, so that the
+generator's stream does not depend on the measure's internals.
 """
 
 from __future__ import annotations
@@ -36,13 +38,14 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+from sdbc_sim.parts import PartSpec, Registry
 from sdbc_sim.settings import PositiveInt, settings
 from threadpoolctl import threadpool_limits
 
-from sdbc_evolution.sdbc.declared import changed_options, declared_part
+from sdbc_evolution.relevance.base import RelevanceMeasure
 from sdbc_evolution.sdbc.weighting import (
     WeightingSettings,
-    _validated,
+    checked_population,
     equal_width_classes,
     kmeans_classes,
     mutual_information,
@@ -77,9 +80,21 @@ def chance_information(
     )
 
 
-@settings
-class MiOptions:
-    """The paper's mutual information has no options beyond ``weighting``."""
+ENTRY_POINT_GROUP = "sdbc.relevance"
+"""Entry point group of relevance measures from other distributions."""
+
+
+class Mi(RelevanceMeasure):
+    """Mutual information with fitness, bits (paper)."""
+
+    def relevance(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        weighting: WeightingSettings,
+        seed: int,
+    ) -> np.ndarray:
+        return mutual_information(raw, fitness, weighting, seed)
 
 
 @settings
@@ -90,35 +105,23 @@ class MiChanceOptions:
     """Fitness permutations averaged for the chance level."""
 
 
-@settings
-class CorrelationOptions:
-    """Correlations have no options."""
+class MiChance(RelevanceMeasure):
+    """Mutual information minus its chance level."""
 
+    options_class = MiChanceOptions
 
-@settings
-class MrmrOptions:
-    """Redundancy-aware selection."""
-
-    redundancy: Literal["mean", "sum"] = "mean"
-    """Subtract the mean (mRMR) or the sum (MIFS, beta = 1) of the redundancies."""
-
-
-def _mi(
-    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
-) -> np.ndarray:
-    return mutual_information(raw, fitness, s, seed)
-
-
-def _mi_chance(
-    raw: np.ndarray,
-    fitness: np.ndarray,
-    s: WeightingSettings,
-    seed: int,
-    options: MiChanceOptions,
-) -> np.ndarray:
-    information = mutual_information(raw, fitness, s, seed)
-    chance = chance_information(raw, fitness, s, seed, options.shuffles)
-    return np.maximum(information - chance, 0.0)
+    def relevance(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        weighting: WeightingSettings,
+        seed: int,
+    ) -> np.ndarray:
+        information = mutual_information(raw, fitness, weighting, seed)
+        chance = chance_information(
+            raw, fitness, weighting, seed, self.options.shuffles
+        )
+        return np.maximum(information - chance, 0.0)
 
 
 def _columns(
@@ -133,28 +136,49 @@ def _columns(
     return out
 
 
-def _pearson(
-    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
-) -> np.ndarray:
-    from scipy.stats import pearsonr
+class Pearson(RelevanceMeasure):
+    """|Pearson r| with fitness."""
 
-    return _columns(raw, fitness, lambda x, y: pearsonr(x, y).statistic)
+    def relevance(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        weighting: WeightingSettings,
+        seed: int,
+    ) -> np.ndarray:
+        from scipy.stats import pearsonr
+
+        return _columns(raw, fitness, lambda x, y: pearsonr(x, y).statistic)
 
 
-def _spearman(
-    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
-) -> np.ndarray:
-    from scipy.stats import spearmanr
+class Spearman(RelevanceMeasure):
+    """|Spearman rho| with fitness."""
 
-    return _columns(raw, fitness, lambda x, y: spearmanr(x, y).statistic)
+    def relevance(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        weighting: WeightingSettings,
+        seed: int,
+    ) -> np.ndarray:
+        from scipy.stats import spearmanr
+
+        return _columns(raw, fitness, lambda x, y: spearmanr(x, y).statistic)
 
 
-def _dcor(
-    raw: np.ndarray, fitness: np.ndarray, s: WeightingSettings, seed: int, _: Any
-) -> np.ndarray:
-    import dcor
+class DistanceCorrelation(RelevanceMeasure):
+    """Distance correlation with fitness."""
 
-    return _columns(raw, fitness, dcor.distance_correlation)
+    def relevance(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        weighting: WeightingSettings,
+        seed: int,
+    ) -> np.ndarray:
+        import dcor
+
+        return _columns(raw, fitness, dcor.distance_correlation)
 
 
 def feature_classes(
@@ -174,65 +198,64 @@ def feature_classes(
     ]
 
 
-def _mrmr(
-    raw: np.ndarray,
-    fitness: np.ndarray,
-    s: WeightingSettings,
-    seed: int,
-    options: MrmrOptions,
-) -> np.ndarray:
-    from sklearn.metrics import mutual_info_score
+@settings
+class MrmrOptions:
+    """Redundancy-aware selection."""
 
-    relevance = mutual_information(raw, fitness, s, seed)
-    classes = feature_classes(raw, s, seed)
-    d = raw.shape[1]
-    redundancy = np.zeros(d)  # sum of I(k; j) over the selected j
-    remaining = list(range(d))
-    score = np.zeros(d)
-    for chosen in range(d):
-        divisor = chosen if options.redundancy == "mean" and chosen else 1
-        candidates = relevance[remaining] - redundancy[remaining] / divisor
-        best = remaining[int(np.argmax(candidates))]
-        score[best] = candidates.max()
-        remaining.remove(best)
-        for k in remaining:
-            redundancy[k] += mutual_info_score(classes[k], classes[best]) / math.log(2)
-    return np.maximum(score, 0.0)
+    redundancy: Literal["mean", "sum"] = "mean"
+    """Subtract the mean (mRMR) or the sum (MIFS, beta = 1) of the redundancies."""
 
 
-@dataclass(frozen=True)
-class Measure:
-    """A registered relevance measure: its options and its function."""
+class Mrmr(RelevanceMeasure):
+    """MI less redundancy with selected dimensions."""
 
-    options: type
-    compute: Callable[..., np.ndarray]
-    summary: str
+    options_class = MrmrOptions
+
+    def relevance(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        weighting: WeightingSettings,
+        seed: int,
+    ) -> np.ndarray:
+        from sklearn.metrics import mutual_info_score
+
+        relevance = mutual_information(raw, fitness, weighting, seed)
+        classes = feature_classes(raw, weighting, seed)
+        d = raw.shape[1]
+        redundancy = np.zeros(d)  # sum of I(k; j) over the selected j
+        remaining = list(range(d))
+        score = np.zeros(d)
+        for chosen in range(d):
+            divisor = chosen if self.options.redundancy == "mean" and chosen else 1
+            candidates = relevance[remaining] - redundancy[remaining] / divisor
+            best = remaining[int(np.argmax(candidates))]
+            score[best] = candidates.max()
+            remaining.remove(best)
+            for k in remaining:
+                redundancy[k] += mutual_info_score(
+                    classes[k], classes[best]
+                ) / math.log(2)
+        return np.maximum(score, 0.0)
 
 
-MEASURES: dict[str, Measure] = {
-    "mi": Measure(MiOptions, _mi, "mutual information with fitness, bits (paper)"),
-    "mi_chance": Measure(
-        MiChanceOptions, _mi_chance, "mutual information minus its chance level"
-    ),
-    "pearson": Measure(CorrelationOptions, _pearson, "|Pearson r| with fitness"),
-    "spearman": Measure(CorrelationOptions, _spearman, "|Spearman rho| with fitness"),
-    "dcor": Measure(CorrelationOptions, _dcor, "distance correlation with fitness"),
-    "mrmr": Measure(MrmrOptions, _mrmr, "MI less redundancy with selected dimensions"),
-}
+MEASURES: Registry[RelevanceMeasure] = Registry(
+    "relevance measure", ENTRY_POINT_GROUP, RelevanceMeasure
+)
 """Every relevance measure, by name."""
+MEASURES.register("mi", Mi)
+MEASURES.register("mi_chance", MiChance)
+MEASURES.register("pearson", Pearson)
+MEASURES.register("spearman", Spearman)
+MEASURES.register("dcor", DistanceCorrelation)
+MEASURES.register("mrmr", Mrmr)
 
 
 @dataclass(frozen=True)
-class RelevanceSpec:
+class RelevanceSpec(PartSpec[RelevanceMeasure]):
     """A declared relevance measure and its options."""
 
-    name: str
-    options: Any
-
-    def to_plain(self) -> str | dict[str, Any]:
-        """The declaration, YAML-ready: the name alone for default options."""
-        changed = changed_options(self.options)
-        return {self.name: changed} if changed else self.name
+    registry = MEASURES
 
     def compute(
         self,
@@ -242,17 +265,31 @@ class RelevanceSpec:
         rng: np.random.Generator,
     ) -> np.ndarray:
         """(D,) relevance of every dimension of ``raw`` (n, D) to ``fitness`` (n,),
-        drawing one integer from ``rng``."""
+        drawing one integer from ``rng``.
+
+        Raises:
+            ValueError: Bad input, or a measure's answer that is not (D,) finite
+                values of at least 0, in one line naming the measure.
+        """
         seed = int(rng.integers(SEED_BOUND))
-        raw, fitness = _validated(raw, fitness)
+        raw, fitness = checked_population(raw, fitness)
         # One thread: k-means on a few hundred values gains nothing from more, loses
         # to thread start-up on a busy machine, and the result cannot then depend on
         # the machine's core count.
         with threadpool_limits(1):
-            values = MEASURES[self.name].compute(
-                raw, fitness, settings, seed, self.options
+            values = self.build().relevance(raw, fitness, settings, seed)
+        values = np.asarray(values, dtype=np.float64)
+        if values.shape != (raw.shape[1],):
+            raise ValueError(
+                f"relevance measure {self.name!r} returned shape {values.shape}, "
+                f"expected ({raw.shape[1]},)"
             )
-        return np.asarray(values, dtype=np.float64)
+        if not (np.isfinite(values).all() and (values >= 0).all()):
+            raise ValueError(
+                f"relevance measure {self.name!r} returned a value that is not "
+                f"finite and at least 0: {values.tolist()}"
+            )
+        return values
 
 
 def parse_relevance(declaration: Any, where: str = "relevance") -> RelevanceSpec:
@@ -261,9 +298,4 @@ def parse_relevance(declaration: Any, where: str = "relevance") -> RelevanceSpec
     Raises:
         SettingsError: Unknown measure or bad options, naming ``where``.
     """
-    if isinstance(declaration, RelevanceSpec):
-        return declaration
-    options = {name: m.options for name, m in MEASURES.items()}
-    return RelevanceSpec(
-        *declared_part(declaration, options, "relevance measure", where)
-    )
+    return RelevanceSpec.parse(declaration, where)

@@ -97,7 +97,11 @@ def equal_width_classes(values: np.ndarray, n_bins: int) -> np.ndarray:
     return np.minimum(bins, n_bins - 1)
 
 
-def _validated(raw: np.ndarray, fitness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def checked_population(
+    raw: np.ndarray, fitness: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(n, D) raw vectors and (n,) fitness as float64, refused in one line unless
+    their shapes agree and every value is finite (every relevance measure's input)."""
     raw = np.asarray(raw, dtype=np.float64)
     fitness = np.asarray(fitness, dtype=np.float64)
     if raw.ndim != 2:
@@ -136,7 +140,7 @@ def mutual_information(
     from sklearn.metrics import mutual_info_score
 
     settings = settings or WeightingSettings()
-    raw, fitness = _validated(raw, fitness)
+    raw, fitness = checked_population(raw, fitness)
     fitness_classes = kmeans_classes(
         fitness, settings.fitness_clusters, seed, settings.kmeans_restarts
     )

@@ -16,7 +16,11 @@ and ``default_generations``. Three kinds of reference name one (:func:`resolve_t
   :func:`task_reference`, so that other processes find it).
 
 Every front end takes these: ``sdbc-evolve --task``, study presets, graph files and
-the simulator, controller and evolution nodes.
+the simulator, controller and evolution nodes. A task is a part as every other kind
+is (:mod:`sdbc_sim.parts`: its settings class is ``config_class``), and its entry
+points are read and reported the same way; unlike the other kinds, every entry
+point is loaded when the registry is first read, because listings show each task's
+class.
 """
 
 from __future__ import annotations
@@ -28,12 +32,12 @@ import pkgutil
 import sys
 from collections.abc import Mapping
 from functools import cache
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from sdbc_sim.parts import PartError, group_entry_points, load_entry_point
 from sdbc_sim.settings import SettingsError, is_settings, load
 from sdbc_sim.task import Task
 
@@ -74,17 +78,13 @@ def available_tasks() -> dict[str, type[Task]]:
         UnknownTask: An entry point that does not load a task, naming it.
     """
     found = dict(package_tasks())
-    for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda p: p.name):
+    for point in group_entry_points(ENTRY_POINT_GROUP):
         if point.name in found:
             continue
         try:
-            loaded = point.load()
-        except Exception as error:  # noqa: BLE001 - any import failure, named
-            raise UnknownTask(
-                f"entry point {point.name} = {point.value!r} of group "
-                f"'{ENTRY_POINT_GROUP}' does not load: {type(error).__name__}: "
-                f"{error}"
-            ) from None
+            loaded = load_entry_point(point)
+        except PartError as error:
+            raise UnknownTask(str(error)) from None
         found[point.name] = _checked_task_class(loaded, f"entry point {point.name}")
     return found
 

@@ -1,9 +1,11 @@
 """Rankings: how a scored generation becomes the order selection reads, registered in
-one place (:data:`RANKINGS`).
+one place (:data:`RANKINGS`), open to the entry point group ``sdbc.rankings``.
 
-A ranking is declared by name (``nsga2``) or as ``{name: {option: value}}``
-(``{scalarised: {weight: 0.7}}``); :func:`parse_ranking` refuses unknown names and
-bad options naming the part.
+A ranking is a part (:mod:`sdbc_sim.parts`): a :class:`~.base.Ranking` subclass with
+an options class, asked through ``rank(context)`` with a
+:class:`~.base.RankingContext`. It is declared by name (``nsga2``) or as
+``{name: {option: value}}`` (``{scalarised: {weight: 0.7}}``); :func:`parse_ranking`
+refuses unknown names and bad options naming the part.
 
 - ``nsga2`` (the paper): non-dominated fronts on (fitness, novelty), then
   ``novelty.tie_break`` inside a front (:mod:`.nsga2`).
@@ -12,16 +14,25 @@ bad options naming the part.
 - ``nslc``: NSGA-II on (novelty, local competition) (Lehman & Stanley 2011).
 - ``scalarised``: w fitness + (1 - w) novelty, both min-max normalised.
 - ``minimal_criterion``: novelty among those that meet a fitness criterion.
+
+None of them draws from the generator.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+from sdbc_sim.parts import PartSpec, Registry
 from sdbc_sim.settings import Fraction, PositiveInt, settings
 
+from sdbc_evolution.ga.rankings.base import (
+    NoOptions,
+    Ranked,
+    Ranking,
+    RankingContext,
+    checked_ranking,
+)
 from sdbc_evolution.ga.rankings.nsga2 import nsga2_order
 from sdbc_evolution.ga.rankings.others import (
     fitness_ranking,
@@ -30,12 +41,46 @@ from sdbc_evolution.ga.rankings.others import (
     novelty_ranking,
     scalarised_ranking,
 )
-from sdbc_evolution.sdbc.declared import changed_options, declared_part
+
+__all__ = [
+    "RANKINGS",
+    "NoOptions",
+    "Ranked",
+    "Ranking",
+    "RankingContext",
+    "RankingSpec",
+    "parse_ranking",
+]
+
+ENTRY_POINT_GROUP = "sdbc.rankings"
+"""Entry point group of rankings from other distributions."""
 
 
-@settings
-class NoOptions:
-    """This ranking has no options."""
+class Nsga2(Ranking):
+    """NSGA-II on (fitness, novelty) (paper)."""
+
+    def rank(self, context: RankingContext) -> tuple[np.ndarray, np.ndarray]:
+        novelty = context.given("novelty", "nsga2")
+        order, front, _ = nsga2_order(
+            np.column_stack([context.fitness, novelty]), tie_break=context.tie_break
+        )
+        return order, front
+
+
+class FitnessAlone(Ranking):
+    """Fitness alone."""
+
+    uses_novelty = False
+
+    def rank(self, context: RankingContext) -> tuple[np.ndarray, np.ndarray]:
+        return fitness_ranking(context.fitness)
+
+
+class NoveltyAlone(Ranking):
+    """Novelty alone."""
+
+    def rank(self, context: RankingContext) -> tuple[np.ndarray, np.ndarray]:
+        return novelty_ranking(context.given("novelty", "novelty"))
 
 
 @settings
@@ -46,12 +91,40 @@ class NslcOptions:
     """Neighbours of the local competition; None: the novelty metric's k."""
 
 
+class Nslc(Ranking):
+    """NSGA-II on (novelty, local competition)."""
+
+    options_class = NslcOptions
+
+    def rank(self, context: RankingContext) -> tuple[np.ndarray, np.ndarray]:
+        competition = local_competition(
+            context.given("population", "nslc"),
+            context.given("archive", "nslc"),
+            context.fitness,
+            context.given("archive_fitness", "nslc"),
+            self.options.k or context.k,
+        )
+        novelty = context.given("novelty", "nslc")
+        order, front, _ = nsga2_order(np.column_stack([novelty, competition]))
+        return order, front
+
+
 @settings
 class ScalarisedOptions:
     """Linear scalarisation."""
 
     weight: Fraction = 0.5
     """w, the share of (normalised) fitness; 1 - w goes to novelty."""
+
+
+class Scalarised(Ranking):
+    """w fitness + (1 - w) novelty."""
+
+    options_class = ScalarisedOptions
+
+    def rank(self, context: RankingContext) -> tuple[np.ndarray, np.ndarray]:
+        novelty = context.given("novelty", "scalarised")
+        return scalarised_ranking(context.fitness, novelty, self.options.weight)
 
 
 @settings
@@ -62,105 +135,50 @@ class MinimalCriterionOptions:
     """The fitness an individual must reach; None: the population's median."""
 
 
-@dataclass(frozen=True)
-class Ranking:
-    """A registered ranking."""
+class MinimalCriterion(Ranking):
+    """Novelty among those meeting a criterion."""
 
-    options: type
-    uses_novelty: bool
-    summary: str
+    options_class = MinimalCriterionOptions
+
+    def rank(self, context: RankingContext) -> tuple[np.ndarray, np.ndarray]:
+        novelty = context.given("novelty", "minimal_criterion")
+        return minimal_criterion_ranking(
+            context.fitness, novelty, self.options.criterion
+        )
 
 
-RANKINGS: dict[str, Ranking] = {
-    "nsga2": Ranking(NoOptions, True, "NSGA-II on (fitness, novelty) (paper)"),
-    "fitness": Ranking(NoOptions, False, "fitness alone"),
-    "novelty": Ranking(NoOptions, True, "novelty alone"),
-    "nslc": Ranking(NslcOptions, True, "NSGA-II on (novelty, local competition)"),
-    "scalarised": Ranking(ScalarisedOptions, True, "w fitness + (1 - w) novelty"),
-    "minimal_criterion": Ranking(
-        MinimalCriterionOptions, True, "novelty among those meeting a criterion"
-    ),
-}
+RANKINGS: Registry[Ranking] = Registry("ranking", ENTRY_POINT_GROUP, Ranking)
 """Every ranking, by name."""
+RANKINGS.register("nsga2", Nsga2)
+RANKINGS.register("fitness", FitnessAlone)
+RANKINGS.register("novelty", NoveltyAlone)
+RANKINGS.register("nslc", Nslc)
+RANKINGS.register("scalarised", Scalarised)
+RANKINGS.register("minimal_criterion", MinimalCriterion)
 
 
 @dataclass(frozen=True)
-class RankingSpec:
+class RankingSpec(PartSpec[Ranking]):
     """A declared ranking and its options."""
 
-    name: str
-    options: Any
+    registry = RANKINGS
 
     @property
     def uses_novelty(self) -> bool:
         """Whether it needs novelty scores (and so a characterisation)."""
-        return RANKINGS[self.name].uses_novelty
+        return self.registered.part.uses_novelty
 
-    def to_plain(self) -> str | dict[str, Any]:
-        """The declaration, YAML-ready: the name alone for default options."""
-        changed = changed_options(self.options)
-        return {self.name: changed} if changed else self.name
-
-    def rank(
-        self,
-        fitness: np.ndarray,
-        novelty: np.ndarray | None,
-        population: np.ndarray | None,
-        archive: np.ndarray | None,
-        archive_fitness: np.ndarray | None,
-        k: int,
-        tie_break: str,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """``(order, front)`` of a generation.
-
-        Args:
-            fitness: (N,) fitness.
-            novelty: (N,) novelty scores (None when the ranking uses none).
-            population: (N, D) transformed behaviour vectors (NSLC).
-            archive: (M, D) transformed archive vectors (NSLC).
-            archive_fitness: (M,) fitness of the archive's entries (NSLC).
-            k: The novelty metric's k.
-            tie_break: The order inside an NSGA-II front (``novelty.tie_break``).
-        """
-        name, options = self.name, self.options
-        if name == "fitness":
-            return fitness_ranking(fitness)
-        novelty = _given(novelty, "novelty", name)
-        if name == "nsga2":
-            order, front, _ = nsga2_order(
-                np.column_stack([fitness, novelty]), tie_break=tie_break
-            )
-            return order, front
-        if name == "novelty":
-            return novelty_ranking(novelty)
-        if name == "nslc":
-            competition = local_competition(
-                _given(population, "behaviour vectors", name),
-                _given(archive, "archive vectors", name),
-                fitness,
-                _given(archive_fitness, "archive fitness", name),
-                options.k or k,
-            )
-            order, front, _ = nsga2_order(np.column_stack([novelty, competition]))
-            return order, front
-        if name == "scalarised":
-            return scalarised_ranking(fitness, novelty, options.weight)
-        return minimal_criterion_ranking(fitness, novelty, options.criterion)
+    def rank(self, context: RankingContext) -> Ranked:
+        """``(order, front)`` of a generation, checked (one-line ValueError naming
+        the ranking for an answer that is not an order of the generation)."""
+        answer = self.build().rank(context)
+        return checked_ranking(self.name, answer, context.size)
 
 
-def _given(array: np.ndarray | None, what: str, ranking: str) -> np.ndarray:
-    if array is None:
-        raise ValueError(f"ranking {ranking!r} needs the {what}")
-    return array
-
-
-def parse_ranking(declaration: Any, where: str = "ranking") -> RankingSpec:
+def parse_ranking(declaration: object, where: str = "ranking") -> RankingSpec:
     """A spec from ``name`` or ``{name: {option: value}}``.
 
     Raises:
         SettingsError: Unknown ranking or bad options, naming ``where``.
     """
-    if isinstance(declaration, RankingSpec):
-        return declaration
-    options = {name: r.options for name, r in RANKINGS.items()}
-    return RankingSpec(*declared_part(declaration, options, "ranking", where))
+    return RankingSpec.parse(declaration, where)
