@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.limits import excerpt
 from sdbc_sim.settings import SettingsError, check
 
 from sdbc_evolution.characterise.evaluation import Evaluation
@@ -230,7 +231,7 @@ def parse_treatment(value: Any, where: str = "") -> TreatmentSpec:
         return PRESETS[value]
     if not isinstance(value, dict):
         raise SettingsError.of(
-            ((where, f"expected a preset's name or a mapping, got {value!r}"),)
+            ((where, f"expected a preset's name or a mapping, got {excerpt(value)}"),)
         )
     unknown = sorted(str(k) for k in value if k not in KEYS)
     if unknown:

@@ -37,6 +37,7 @@ from sdbc_sim.settings import (
     settings,
     to_plain,
 )
+from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 from sdbc_evolution.ga.novelty import NoveltyConfig
 from sdbc_evolution.ga.treatments import PRESETS, TreatmentSpec, parse_treatment
@@ -256,13 +257,9 @@ def load_config(path: str | Path) -> ExperimentConfig:
     """
     path = Path(path)
     try:
-        text = path.read_text()
-    except OSError as error:
-        raise ConfigError(f"cannot read configuration {path}: {error}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise ConfigError(f"{path} is not valid YAML: {error}") from None
+        data = read_yaml(path, "configuration")
+    except YamlRefused as error:
+        raise ConfigError(str(error)) from None
     if data is None:
         # Not every default: an empty file is more likely a mistake than a wish
         # for a paper-scale run.
@@ -293,9 +290,9 @@ def load_treatment(value: str | Path) -> TreatmentSpec:
             "a YAML file"
         )
     try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as error:
-        raise ConfigError(f"treatment file {path}: {error}") from None
+        data = read_yaml(path, "treatment file")
+    except YamlRefused as error:
+        raise ConfigError(str(error)) from None
     if isinstance(data, dict) and set(data) == {"treatment"}:
         data = data["treatment"]
     try:

@@ -38,6 +38,7 @@ from sdbc_sim.settings import (
     settings,
     to_plain,
 )
+from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 from sdbc_evolution.ga.treatments import PRESETS, TreatmentSpec, parse_treatment
 from sdbc_evolution.run.config import (
@@ -264,11 +265,9 @@ def load_preset_file(path: str | Path) -> StudyPreset:
     """Reads a preset from a YAML file (its ``name`` defaults to the file's stem)."""
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as error:
-        raise PresetError(f"cannot read preset {path}: {error}") from None
-    except yaml.YAMLError as error:
-        raise PresetError(f"{path} is not valid YAML: {error}") from None
+        data = read_yaml(path, "preset")
+    except YamlRefused as error:
+        raise PresetError(str(error)) from None
     if isinstance(data, dict):
         data.setdefault("name", path.stem)
     return preset_from_dict(data, str(path))

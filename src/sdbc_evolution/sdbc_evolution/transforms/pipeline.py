@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any
 
 import numpy as np
+from sdbc_sim.limits import excerpt
 from sdbc_sim.settings import Field, SettingsError, settings
 
 from sdbc_evolution.relevance.measures import RelevanceSpec, parse_relevance
@@ -92,7 +93,7 @@ def parse_transforms(
         return ()
     if not isinstance(declaration, (list, tuple)):
         raise SettingsError.of(
-            ((where, f"expected a list of transforms, got {declaration!r}"),)
+            ((where, f"expected a list of transforms, got {excerpt(declaration)}"),)
         )
     specs: list[TransformSpec] = []
     for i, item in enumerate(declaration):

@@ -39,8 +39,10 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 
+from sdbc_sim.limits import excerpt
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import make_task
+from sdbc_sim.yaml_input import YamlRefused, parse_yaml
 
 SIMULATOR_NODE = "simulator"
 """Name of the simulator node."""
@@ -149,15 +151,15 @@ def parse_task_config(text: str) -> dict[str, Any]:
         ValueError: If the text is not YAML or not a mapping with string keys.
     """
     try:
-        data = yaml.safe_load(text) if text.strip() else {}
-    except yaml.YAMLError as error:
-        raise ValueError(f"task_config: not valid YAML ({error})") from None
+        data = parse_yaml(text, "task_config") if text.strip() else {}
+    except YamlRefused as error:
+        raise ValueError(str(error)) from None
     if data is None:
         return {}
     if not isinstance(data, Mapping) or not all(isinstance(k, str) for k in data):
         raise ValueError(
             f"task_config: expected a mapping of task settings such as "
-            f"'{{max_steps: 300}}', got {text!r}"
+            f"'{{max_steps: 300}}', got {excerpt(text)}"
         )
     return dict(data)
 

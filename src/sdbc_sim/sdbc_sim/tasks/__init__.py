@@ -32,6 +32,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
+from sdbc_sim.limits import excerpt
 from sdbc_sim.settings import SettingsError, is_settings, load
 from sdbc_sim.task import Task
 
@@ -116,7 +117,7 @@ def resolve_task(reference: str) -> type[Task]:
     """
     if not isinstance(reference, str) or not reference:
         raise UnknownTask(
-            f"a task reference must be a non-empty string, got {reference!r}"
+            f"a task reference must be a non-empty string, got {excerpt(reference)}"
         )
     tasks = available_tasks()
     if reference in tasks:
