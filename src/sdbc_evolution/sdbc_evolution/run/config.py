@@ -159,6 +159,27 @@ class ExperimentConfig:
         from sdbc_sim.tasks import task_reference
 
         object.__setattr__(self, "task", task_reference(self.task))
+        # Novelty counts neighbours among the generation's other individuals
+        # and the archive: a k that both together can never reach is a mistake.
+        most = self.ga.population_size - 1 + self.novelty.archive_size
+        check(
+            self.novelty.k <= most,
+            "novelty.k",
+            f"{self.novelty.k} is more than the {most} neighbours a generation "
+            f"can ever have (ga.population_size - 1 + novelty.archive_size)",
+        )
+
+    def notes(self) -> list[str]:
+        """What the run does differently from what its settings may suggest, one
+        line each, for the command line to say before the run starts."""
+        others = self.ga.population_size - 1
+        if self.novelty.k <= others:
+            return []
+        return [
+            f"novelty.k={self.novelty.k} is more than the {others} other "
+            "individuals of a generation: novelty averages over all of them and "
+            f"the archive until the archive holds {self.novelty.k - others} entries"
+        ]
 
     @property
     def resolved_generations(self) -> int:

@@ -139,6 +139,17 @@ class StudyPreset:
         for key in ("generations", "task_config"):
             extra = sorted(set(getattr(self, key)) - set(self.tasks))
             check(not extra, key, f"names tasks not in the study: {extra}")
+        # A task's default generations are the paper's: right for a study at the
+        # paper's scale, and for a smaller one the silent start of a study of days.
+        scaled = _own_scale(self.experiment)
+        missing = [t for t in self.tasks if t not in self.generations]
+        check(
+            not (scaled and missing),
+            "generations",
+            f"not given for {missing}: a preset that sets its own "
+            f"{', '.join(scaled)} must "
+            "set each task's generations too (left out, a task takes the paper's)",
+        )
         reserved = sorted(set(self.experiment) & set(STUDY_KEYS))
         check(
             not reserved,
@@ -241,6 +252,27 @@ class StudyPreset:
             "re-evaluation trials": config.evaluation.reevaluation_trials,
             "generations": {t: self.generations_of(t) for t in self.tasks},
         }
+
+
+_SCALE_KEYS = (
+    ("ga", "population_size"),
+    ("evaluation", "trials"),
+    ("evaluation", "reevaluation_trials"),
+)
+"""The settings that make a study's scale, besides its generations."""
+
+
+def _own_scale(experiment: dict[str, Any]) -> list[str]:
+    """The scale settings of a preset's ``experiment`` that differ from the
+    paper's, as dotted names."""
+    defaults = ExperimentConfig()
+    own = []
+    for section, key in _SCALE_KEYS:
+        part = experiment.get(section)
+        default = getattr(getattr(defaults, section), key)
+        if isinstance(part, dict) and key in part and part[key] != default:
+            own.append(f"{section}.{key}")
+    return own
 
 
 def _runs_part(data: dict[str, Any]) -> dict[str, Any]:

@@ -32,7 +32,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
-from sdbc_sim.limits import excerpt
+from sdbc_sim.limits import MAX_STEPS, excerpt
 from sdbc_sim.settings import SettingsError, is_settings, load
 from sdbc_sim.task import Task
 
@@ -220,6 +220,13 @@ def task_settings(task_class: type[Task], overrides: Mapping[str, Any]) -> Any:
 
     Raises:
         SettingsError: Naming each unknown setting or bad value (its paths are the
-            settings' names: prefix them with where they came from).
+            settings' names: prefix them with where they came from), or a
+            ``max_steps`` beyond :data:`sdbc_sim.limits.MAX_STEPS`.
     """
-    return load(task_class.config_class, overrides)
+    made = load(task_class.config_class, overrides)
+    max_steps = getattr(made, "max_steps", None)
+    if isinstance(max_steps, int) and max_steps > MAX_STEPS:
+        raise SettingsError.of(
+            (("max_steps", f"{max_steps} is more than MAX_STEPS={MAX_STEPS}"),)
+        )
+    return made
