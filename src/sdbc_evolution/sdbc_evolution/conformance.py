@@ -52,6 +52,7 @@ from typing import Any
 
 import numpy as np
 from sdbc_sim.engine import BatchResult, TrialStepper, run_batch
+from sdbc_sim.limits import excerpt
 from sdbc_sim.network import forward
 from sdbc_sim.settings import SettingsError, field_docs, is_settings
 from sdbc_sim.task import Task
@@ -160,7 +161,7 @@ def check_declaration(subject: Subject) -> str:
         _fail(f"settings without a docstring: {', '.join(undocumented)}")
     generations = task_class.default_generations
     if isinstance(generations, bool) or not isinstance(generations, int):
-        _fail(f"default_generations must be an integer, got {generations!r}")
+        _fail(f"default_generations must be an integer, got {excerpt(generations)}")
     if generations < 1:
         _fail(f"default_generations must be at least 1, got {generations}")
     task = subject.task
@@ -176,7 +177,7 @@ def check_declaration(subject: Subject) -> str:
     if task.genome_length < 1:
         _fail("the network has no weights")
     if isinstance(task.max_steps, bool) or not isinstance(task.max_steps, int):
-        _fail(f"max_steps must be an integer, got {task.max_steps!r}")
+        _fail(f"max_steps must be an integer, got {excerpt(task.max_steps)}")
     if task.max_steps < 1:
         _fail(f"max_steps must be at least 1, got {task.max_steps}")
     names = task.characterisation_names

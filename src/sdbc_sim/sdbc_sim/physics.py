@@ -62,6 +62,7 @@ import pymunk
 import pymunk.batch as pb
 
 from sdbc_sim import compiled
+from sdbc_sim.limits import excerpt
 from sdbc_sim.separation import project_apart
 from sdbc_sim.task import Task
 
@@ -228,7 +229,8 @@ class PhysicsSettings:
     def __post_init__(self) -> None:
         if self.model not in MODELS:
             raise ValueError(
-                f"physics: model must be one of {', '.join(MODELS)}, got {self.model!r}"
+                f"physics: model must be one of {', '.join(MODELS)}, "
+                f"got {excerpt(self.model)}"
             )
         if self.model == "kinematic" and self.actuation != "velocity":
             raise ValueError(

@@ -51,6 +51,8 @@ import pydantic
 import pydantic.dataclasses
 from pydantic import Field, Strict, ValidationError
 
+from sdbc_sim.limits import excerpt
+
 __all__ = [
     "Field",
     "Fraction",
@@ -215,7 +217,7 @@ def load(cls: type[T], data: Any, where: str = "") -> T:
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
-        raise SettingsError.of(((where, f"expected a mapping, got {data!r}"),))
+        raise SettingsError.of(((where, f"expected a mapping, got {excerpt(data)}"),))
     try:
         return _adapter(cls).validate_python(dict(data))
     except ValidationError as error:
@@ -263,7 +265,7 @@ def _problems(
         if kind == "missing_keyword_only_argument":
             problems.append((path, "missing (no default)"))
             continue
-        problems.append((path, f"{message}, got {item['input']!r}"))
+        problems.append((path, f"{message}, got {excerpt(item['input'])}"))
     return tuple(problems)
 
 

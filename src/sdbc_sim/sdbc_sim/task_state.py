@@ -48,6 +48,8 @@ from typing import Literal
 
 import numpy as np
 
+from sdbc_sim.limits import excerpt
+
 
 class Geometry(str, Enum):
     """The shape an entity has for the distance function f_D."""
@@ -94,7 +96,8 @@ class EntityGroupSpec:
         where = f"entity group {self.name!r}"
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(
-                f"entity group: the name must be a non-empty string, got {self.name!r}"
+                "entity group: the name must be a non-empty string, "
+                f"got {excerpt(self.name)}"
             )
         if isinstance(self.attributes, str) or not all(
             isinstance(a, str) and a for a in self.attributes
@@ -106,17 +109,19 @@ class EntityGroupSpec:
         for label in ("min_size", "max_size"):
             value = getattr(self, label)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                raise ValueError(f"{where}: {label} must be an integer, got {value!r}")
+                raise ValueError(
+                    f"{where}: {label} must be an integer, got {excerpt(value)}"
+                )
         if not isinstance(self.static, (bool, np.bool_)):
             raise ValueError(
-                f"{where}: static must be True or False, got {self.static!r}"
+                f"{where}: static must be True or False, got {excerpt(self.static)}"
             )
         try:
             geometry = Geometry(self.geometry)
         except ValueError:
             raise ValueError(
                 f"{where}: geometry must be one of "
-                f"{[g.value for g in Geometry]}, got {self.geometry!r}"
+                f"{[g.value for g in Geometry]}, got {excerpt(self.geometry)}"
             ) from None
         if self.min_size < 0:
             raise ValueError(f"{where}: min_size {self.min_size} < 0")

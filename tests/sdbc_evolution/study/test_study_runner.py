@@ -69,6 +69,7 @@ def test_plan_interleaves_treatments_and_seeds_depend_on_names(
             **TINY,
             "tasks": ["resource_sharing", "gate_escape"],
             "treatments": ["ns-ts", "fit", "ns-sd+"],
+            "generations": {"resource_sharing": 2, "gate_escape": 2},
         }
     )
     again = {s.name: s.config.seed for s in study_plan(bigger, tmp_path)}

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sdbc_sim.limits import excerpt
 from sdbc_sim.parts import at
 from sdbc_sim.settings import SettingsError, check
 
@@ -224,7 +225,7 @@ def parse_treatment(value: Any, where: str = "") -> TreatmentSpec:
         return PRESETS[value]
     if not isinstance(value, dict):
         raise SettingsError.of(
-            ((where, f"expected a preset's name or a mapping, got {value!r}"),)
+            ((where, f"expected a preset's name or a mapping, got {excerpt(value)}"),)
         )
     unknown = sorted(str(k) for k in value if k not in KEYS)
     if unknown:

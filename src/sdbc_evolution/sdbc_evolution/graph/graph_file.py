@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
-import yaml
+from sdbc_sim.limits import excerpt
 from sdbc_sim.settings import (
     Field,
     PositiveFloat,
@@ -24,6 +24,7 @@ from sdbc_sim.settings import (
     load,
     settings,
 )
+from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 LAUNCH_KEY = "sdbc_graph"
 """Top-level key of a graph file whose ``ros__parameters`` are the
@@ -94,9 +95,9 @@ def load_graph_file(path: str | Path) -> GraphFile:
 
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as error:
-        raise GraphError(f"graph file {path}: {error}") from None
+        data = read_yaml(path, "graph file")
+    except YamlRefused as error:
+        raise GraphError(str(error)) from None
     if not isinstance(data, Mapping):
         raise GraphError(f"graph file {path}: expected a mapping of sections")
     data = dict(data)
@@ -136,7 +137,7 @@ def load_graph_file(path: str | Path) -> GraphFile:
     if not isinstance(task_config, Mapping):
         raise GraphError(
             f"graph file {path}: '{SHARED_KEY}' task_config must be a mapping of task "
-            f"settings, got {task_config!r}"
+            f"settings, got {excerpt(task_config)}"
         )
     # Nodes read task_config as a string parameter.
     shared["task_config"] = format_task_config(task_config)

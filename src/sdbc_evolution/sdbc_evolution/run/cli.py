@@ -35,13 +35,16 @@ from sdbc_evolution.run.evaluators import (
     SchedulerLost,
     SchedulerUnreachable,
     TaskInfo,
+    ValuesOutOfRange,
     add_evaluator_arguments,
+    check_evaluator_arguments,
     make_evaluator,
     quiet_dask_logging,
 )
 from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
 from sdbc_evolution.run.footprint import check_footprint
 from sdbc_evolution.run.lock import RunBusy
+from sdbc_evolution.run.processes import available_cores
 from sdbc_evolution.run.request import (
     RESULTS_ROOT,
     ConfigRequest,
@@ -161,15 +164,19 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     try:
+        check_evaluator_arguments(args)
         config = resolve_config(config_request(args))
         # The task's own settings too, so that a bad one stops before any run.
         check_task_config(config.task, config.task_config)
-        if args.workers is not None and args.workers < 1:
-            raise ConfigError(f"--workers: must be at least 1, got {args.workers}")
         out = args.out if args.out is not None else default_out(config)
         if out.exists() and not out.is_dir():
             raise ConfigError(f"--out {out}: a file, not a directory")
-        check_footprint(config, TaskInfo.of(task_spec(config)))
+        workers = 1 if args.scheduler is not None else args.workers
+        check_footprint(
+            config,
+            TaskInfo.of(task_spec(config)),
+            workers=available_cores() if workers is None else workers,
+        )
         if args.scheduler is not None:
             quiet_dask_logging()
         evaluator = make_evaluator(
@@ -181,6 +188,8 @@ def _main(args: argparse.Namespace) -> int:
     except (ConfigError, CheckpointError, SchedulerUnreachable, ValueError) as error:
         print(f"sdbc-evolve: error: {error}", file=sys.stderr)
         return 2
+    for note in config.notes():
+        print(f"sdbc-evolve: note: {note}", file=sys.stderr)
     with evaluator:
         try:
             if args.resume:
@@ -220,6 +229,13 @@ def _run(experiment: Experiment, out: Path, quiet: bool) -> int:
     try:
         with stoppable():
             experiment.run(progress)
+    except ValuesOutOfRange as error:
+        bar.close()
+        print(
+            f"sdbc-evolve: error: {error} (sdbc-evolve --resume --out {out})",
+            file=sys.stderr,
+        )
+        return 2
     except SchedulerLost as error:
         bar.close()
         print(

@@ -34,6 +34,7 @@ from sdbc_sim.settings import (
     settings,
     to_plain,
 )
+from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 # GaConfig is the ask/tell object's (sdbc_evolution.ga.breeding); re-exported here
 # as a section of the configuration.
@@ -117,6 +118,27 @@ class ExperimentConfig:
         from sdbc_sim.tasks import task_reference
 
         object.__setattr__(self, "task", task_reference(self.task))
+        # Novelty counts neighbours among the generation's other individuals
+        # and the archive: a k that both together can never reach is a mistake.
+        most = self.ga.population_size - 1 + self.novelty.archive_size
+        check(
+            self.novelty.k <= most,
+            "novelty.k",
+            f"{self.novelty.k} is more than the {most} neighbours a generation "
+            f"can ever have (ga.population_size - 1 + novelty.archive_size)",
+        )
+
+    def notes(self) -> list[str]:
+        """What the run does differently from what its settings may suggest, one
+        line each, for the command line to say before the run starts."""
+        others = self.ga.population_size - 1
+        if self.novelty.k <= others:
+            return []
+        return [
+            f"novelty.k={self.novelty.k} is more than the {others} other "
+            "individuals of a generation: novelty averages over all of them and "
+            f"the archive until the archive holds {self.novelty.k - others} entries"
+        ]
 
     @property
     def resolved_generations(self) -> int:
@@ -215,13 +237,9 @@ def load_config(path: str | Path) -> ExperimentConfig:
     """
     path = Path(path)
     try:
-        text = path.read_text()
-    except OSError as error:
-        raise ConfigError(f"cannot read configuration {path}: {error}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise ConfigError(f"{path} is not valid YAML: {error}") from None
+        data = read_yaml(path, "configuration")
+    except YamlRefused as error:
+        raise ConfigError(str(error)) from None
     if data is None:
         # Not every default: an empty file is more likely a mistake than a wish
         # for a paper-scale run.
@@ -252,9 +270,9 @@ def load_treatment(value: str | Path) -> TreatmentSpec:
             "a YAML file"
         )
     try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as error:
-        raise ConfigError(f"treatment file {path}: {error}") from None
+        data = read_yaml(path, "treatment file")
+    except YamlRefused as error:
+        raise ConfigError(str(error)) from None
     if isinstance(data, dict) and set(data) == {"treatment"}:
         data = data["treatment"]
     try:

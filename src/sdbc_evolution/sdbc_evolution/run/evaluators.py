@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
+from sdbc_sim.limits import MAX_CONNECT_TIMEOUT, MAX_WORKERS
 
 from sdbc_evolution.characterise.evaluation import SDBC, TASK, Evaluation
 from sdbc_evolution.characterise.registry import ALWAYS, CharacterisationSpec
@@ -50,7 +51,14 @@ from sdbc_evolution.run.processes import available_cores, worker_pool
 if TYPE_CHECKING:
     from sdbc_sim.engine import EngineSettings
 
-__all__ = ["Evaluation", "Evaluator", "TaskInfo", "TaskSpec"]
+__all__ = [
+    "Evaluation",
+    "Evaluator",
+    "TaskInfo",
+    "TaskSpec",
+    "ValuesOutOfRange",
+    "check_values",
+]
 
 DEFAULT_CONNECT_TIMEOUT = 10.0
 """Seconds to wait for a Dask scheduler before giving up."""
@@ -213,8 +221,69 @@ def _check_batch(
     return genomes, seeds
 
 
+FITNESS_RANGE = (0.0, 1.0)
+"""Where the contract of a task (``sdbc_sim.task``) and of an outside simulator
+(the README's "Evolution through another simulator: the contract") puts every
+trial's fitness."""
+CHARACTERISATION_RANGE = (0.0, 1.0)
+"""Where the contract puts every value of the task-specific characterisation."""
+
+
+class ValuesOutOfRange(ValueError):
+    """An evaluation whose values break the contract: the run stops before the
+    generation is scored, and its checkpoint (the previous generation's) is
+    intact. The message names the value, the genome and the trial."""
+
+
+def check_values(evaluation: Evaluation, task: str) -> None:
+    """Refuses an evaluation with a trial fitness outside :data:`FITNESS_RANGE`, a
+    task-specific characterisation value outside :data:`CHARACTERISATION_RANGE`,
+    or a NaN or infinite value in any characterisation.
+
+    Why stop rather than warn or drop the trial: every such value comes from a
+    task or simulator that breaks its contract (a negative fitness, which the
+    harmonic mean floors at 1e-4 so that evolution gets no signal; an outside
+    simulator answering 20), so every later generation would be selected on it;
+    dropping trials would bias the run silently. Stopping costs one generation,
+    which resume repeats once the task is fixed.
+
+    Raises:
+        ValuesOutOfRange: Naming the first bad value, where it is, and the task.
+    """
+    checks: list[tuple[str, np.ndarray, tuple[float, float] | None]] = [
+        ("trial fitness", evaluation.trial_fitness, FITNESS_RANGE)
+    ]
+    for key, values in evaluation.behaviours.items():
+        bounds = CHARACTERISATION_RANGE if key == TASK else None
+        checks.append((f"characterisation {key!r}", values, bounds))
+    for label, values, bounds in checks:
+        values = np.asarray(values, dtype=np.float64)
+        bad = ~np.isfinite(values)
+        if bounds is not None:
+            bad |= (values < bounds[0]) | (values > bounds[1])
+        if not bad.any():
+            continue
+        where = tuple(int(i) for i in np.argwhere(bad)[0])
+        allowed = "finite" if bounds is None else f"in [{bounds[0]:g}, {bounds[1]:g}]"
+        position = (
+            f"genome {where[0]}, trial {where[1]}"
+            if label == "trial fitness"
+            else f"genome {where[0]}, dimension {where[1]}"
+        )
+        raise ValuesOutOfRange(
+            f"task {task!r} returned {label} {float(values[where])!r} at {position} "
+            f"({int(bad.sum())} of {values.size} values), the contract says "
+            f"{allowed}: fix the task or simulator (docs/limits.md), then resume"
+        )
+
+
 class Evaluator(ABC):
-    """Evaluates genomes in trials; every implementation gives the same results."""
+    """Evaluates genomes in trials; every implementation gives the same results.
+
+    Whatever runs the trials (this machine, a Dask cluster, the live graph and
+    an outside simulator), :meth:`evaluate` checks what comes back with
+    :func:`check_values`.
+    """
 
     spec: TaskSpec
 
@@ -235,10 +304,15 @@ class Evaluator(ABC):
         Args:
             genomes: (G, W) float64 genomes.
             seeds: (G, T) int64 trial seeds.
+
+        Raises:
+            ValuesOutOfRange: A value breaks the contract (:func:`check_values`).
         """
         genomes, seeds = _check_batch(genomes, seeds)
         bounds = chunk_bounds(genomes.shape[0], self.workers)
-        return Evaluation.concatenate(self._run(genomes, seeds, bounds))
+        evaluation = Evaluation.concatenate(self._run(genomes, seeds, bounds))
+        check_values(evaluation, self.spec.name)
+        return evaluation
 
     @abstractmethod
     def close(self) -> None:
@@ -262,8 +336,10 @@ class LocalEvaluator(Evaluator):
     def __init__(self, spec: TaskSpec, workers: int | None = None) -> None:
         if workers is None:
             workers = available_cores()
-        if workers < 1:
-            raise ValueError(f"workers must be at least 1, got {workers}")
+        if not 1 <= workers <= MAX_WORKERS:
+            raise ValueError(
+                f"workers must be in [1, MAX_WORKERS={MAX_WORKERS}], got {workers}"
+            )
         self.spec = spec
         self._workers = workers
         self._pool: ProcessPoolExecutor | None = None
@@ -398,8 +474,11 @@ class DaskEvaluator(Evaluator):
         from distributed import Client
         from distributed.security import Security
 
-        if not (math.isfinite(timeout) and timeout > 0):
-            raise ValueError(f"timeout must be positive, got {timeout}")
+        if not (math.isfinite(timeout) and 0 < timeout <= MAX_CONNECT_TIMEOUT):
+            raise ValueError(
+                f"timeout must be in (0, MAX_CONNECT_TIMEOUT={MAX_CONNECT_TIMEOUT:g}] "
+                f"seconds, got {timeout:g}"
+            )
         self.spec = spec
         self.address = address
         self.timeout = timeout
@@ -512,6 +591,26 @@ def make_evaluator(
             )
         return DaskEvaluator(spec, scheduler, timeout)
     return LocalEvaluator(spec, workers)
+
+
+def check_evaluator_arguments(args: argparse.Namespace) -> None:
+    """Refuses ``--workers`` and ``--connect-timeout`` beyond their limits
+    (:mod:`sdbc_sim.limits`), before anything is made.
+
+    Raises:
+        ValueError: Naming the flag, its limit and the value.
+    """
+    workers = args.workers
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise ValueError(
+            f"--workers: must be in [1, MAX_WORKERS={MAX_WORKERS}], got {workers}"
+        )
+    timeout = args.connect_timeout
+    if not (math.isfinite(timeout) and 0 < timeout <= MAX_CONNECT_TIMEOUT):
+        raise ValueError(
+            f"--connect-timeout: must be in (0, MAX_CONNECT_TIMEOUT="
+            f"{MAX_CONNECT_TIMEOUT:g}] seconds, got {timeout:g}"
+        )
 
 
 def add_evaluator_arguments(parser: argparse.ArgumentParser, workers_help: str) -> None:

@@ -15,13 +15,17 @@ The estimate is deliberately simple and on the high side:
   14.5 KB for resource sharing, 17.8 KB for predator-prey; rounded up.
 - the GA's arrays: the population and its offspring (N x W float64, a few times),
   the seeds and per-trial fitness (N x T), characterisations and SDBC vectors
-  (N x (C + D), a few times), and the novelty archive.
+  (N x (C + D), a few times), and the novelty archive;
+- ``WORKER_BYTES`` per local worker process (:mod:`sdbc_sim.limits`): a pool of
+  W workers starts min(W, N) processes, one chunk of individuals each.
 """
 
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+
+from sdbc_sim.limits import WORKER_BYTES
 
 from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.run.evaluators import TaskInfo
@@ -46,24 +50,39 @@ class Footprint:
     Attributes:
         trials: Bytes of the trials simulated at once.
         arrays: Bytes of the GA's per-individual arrays and the archive.
+        workers: Bytes of the worker processes themselves.
     """
 
     trials: int
     arrays: int
+    workers: int = 0
 
     @property
     def total(self) -> int:
-        return self.trials + self.arrays
+        return self.trials + self.arrays + self.workers
 
 
-def run_footprint(config: ExperimentConfig, info: TaskInfo) -> Footprint:
-    """The peak memory of a generation of ``config`` on the task ``info``."""
+def worker_processes(config: ExperimentConfig, workers: int) -> int:
+    """Processes a local pool of ``workers`` starts for ``config``: one per
+    chunk, and a batch is cut into at most one chunk per individual; one
+    worker runs in process."""
+    return 0 if workers <= 1 else min(workers, config.ga.population_size)
+
+
+def run_footprint(
+    config: ExperimentConfig, info: TaskInfo, workers: int = 1
+) -> Footprint:
+    """The peak memory of a generation of ``config`` on the task ``info`` with
+    ``workers`` local worker processes (1: in process; a Dask cluster's workers
+    are not on this machine)."""
     n, t = config.ga.population_size, config.evaluation.trials
     w, c, d = info.genome_length, info.characterisation_size, len(info.sdbc_names)
     per_individual = 8 * (w + 2 * t + c + d)
     archive = config.novelty.archive_size * 8 * (max(c, d) + 2)
     return Footprint(
-        trials=n * t * TRIAL_BYTES, arrays=COPIES * n * per_individual + archive
+        trials=n * t * TRIAL_BYTES,
+        arrays=COPIES * n * per_individual + archive,
+        workers=worker_processes(config, workers) * WORKER_BYTES,
     )
 
 
@@ -83,20 +102,27 @@ def available_memory() -> int | None:
         return None
 
 
-def check_footprint(config: ExperimentConfig, info: TaskInfo) -> None:
+def check_footprint(config: ExperimentConfig, info: TaskInfo, workers: int = 1) -> None:
     """Refuses a run whose estimated peak memory exceeds what is available.
 
+    Args:
+        workers: Local worker processes (1: in process).
+
     Raises:
-        FootprintError: Naming the population, the trials, the estimate and the
-            memory available.
+        FootprintError: Naming the population, the trials, the workers, the
+            estimate and the memory available.
     """
-    need = run_footprint(config, info).total
+    footprint = run_footprint(config, info, workers)
+    need = footprint.total
     have = available_memory()
     if have is None or need <= have:
         return
+    processes = worker_processes(config, workers)
     raise FootprintError(
         f"ga.population_size {config.ga.population_size} x evaluation.trials "
-        f"{config.evaluation.trials} needs about {need / GIB:.1f} GiB of memory "
-        f"at once, only {have / GIB:.1f} GiB available: choose a smaller "
-        "population or fewer trials"
+        f"{config.evaluation.trials}"
+        + (f" with {processes} worker processes" if processes else "")
+        + f" needs about {need / GIB:.1f} GiB of memory at once, only "
+        f"{have / GIB:.1f} GiB available: choose a smaller population, fewer "
+        "trials or fewer workers"
     )

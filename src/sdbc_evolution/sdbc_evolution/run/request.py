@@ -103,8 +103,10 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
         if value is None:
             continue
         try:
+            # From the section as changed so far: --trials and --physics both
+            # change evaluation, and each must keep the other's change.
             changes[section] = dataclasses.replace(
-                getattr(config, section), **{key: value}
+                changes.get(section, getattr(config, section)), **{key: value}
             )
         except SettingsError as error:
             problem = error.prefixed(section)

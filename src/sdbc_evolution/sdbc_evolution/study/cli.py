@@ -31,6 +31,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from sdbc_sim.limits import excerpt
+
 from sdbc_evolution.run.evaluators import (
     SchedulerLost,
     SchedulerUnreachable,
@@ -278,7 +280,9 @@ def _compare(args: argparse.Namespace) -> int:
 
     names = tuple(n.strip() for n in args.names.split(","))
     if len(names) != 2 or not all(names):
-        return _error(f"--names: two names separated by a comma, got {args.names!r}")
+        return _error(
+            f"--names: two names separated by a comma, got {excerpt(args.names)}"
+        )
     try:
         before, after = read_claims(args.before), read_claims(args.after)
         reasons = read_reasons(args.reasons) if args.reasons is not None else {}

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
+from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 from sdbc_evolution.study.claims import Verdict
 from sdbc_evolution.study.paper import task_title
@@ -94,9 +94,9 @@ def read_reasons(path: str | Path) -> dict[str, str]:
     """
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as error:
-        raise CompareError(f"{path}: {error}") from None
+        data = read_yaml(path, "explanations")
+    except YamlRefused as error:
+        raise CompareError(str(error)) from None
     if data is None:
         return {}
     if not isinstance(data, dict) or not all(

@@ -38,8 +38,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+from sdbc_sim.limits import excerpt
 from sdbc_sim.settings import load
+from sdbc_sim.yaml_input import YamlRefused, parse_yaml
 
 from sdbc_evolution.ga.treatments import PAPER_TREATMENTS
 from sdbc_evolution.run.config import (
@@ -427,8 +428,8 @@ def _read_task(file: Path, task: str, som: SomSettings) -> TaskDigest:
     runs = []
     for i, name in enumerate(run_names):
         try:
-            config = config_from_dict(yaml.safe_load(str(configs[i])))
-        except (ConfigError, yaml.YAMLError) as error:
+            config = config_from_dict(parse_yaml(str(configs[i]), "configuration"))
+        except (ConfigError, YamlRefused) as error:
             raise _fail(file, f"configuration of {name}: {error}") from None
         if config.task != task:
             raise _fail(file, f"{name} is a run of {config.task!r}, not {task!r}")
@@ -502,7 +503,9 @@ def read_digest(directory: str | Path) -> StudyDigest:
         raise _fail(file, "'problems' must be [run, reason] pairs")
     expected = data.get("expected")
     if expected is not None and (not isinstance(expected, int) or expected < 0):
-        raise _fail(file, f"'expected' must be a count or null, got {expected!r}")
+        raise _fail(
+            file, f"'expected' must be a count or null, got {excerpt(expected)}"
+        )
     sessions = _field(data, "sessions", list, file)
     if not all(isinstance(s, dict) for s in sessions):
         raise _fail(file, "'sessions' must be objects")

@@ -38,6 +38,7 @@ from sdbc_sim.settings import (
     settings,
     to_plain,
 )
+from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 from sdbc_evolution.ga.treatments import PRESETS, TreatmentSpec, parse_treatment
 from sdbc_evolution.run.config import (
@@ -138,6 +139,17 @@ class StudyPreset:
         for key in ("generations", "task_config"):
             extra = sorted(set(getattr(self, key)) - set(self.tasks))
             check(not extra, key, f"names tasks not in the study: {extra}")
+        # A task's default generations are the paper's: right for a study at the
+        # paper's scale, and for a smaller one the silent start of a study of days.
+        scaled = _own_scale(self.experiment)
+        missing = [t for t in self.tasks if t not in self.generations]
+        check(
+            not (scaled and missing),
+            "generations",
+            f"not given for {missing}: a preset that sets its own "
+            f"{', '.join(scaled)} must "
+            "set each task's generations too (left out, a task takes the paper's)",
+        )
         reserved = sorted(set(self.experiment) & set(STUDY_KEYS))
         check(
             not reserved,
@@ -242,6 +254,27 @@ class StudyPreset:
         }
 
 
+_SCALE_KEYS = (
+    ("ga", "population_size"),
+    ("evaluation", "trials"),
+    ("evaluation", "reevaluation_trials"),
+)
+"""The settings that make a study's scale, besides its generations."""
+
+
+def _own_scale(experiment: dict[str, Any]) -> list[str]:
+    """The scale settings of a preset's ``experiment`` that differ from the
+    paper's, as dotted names."""
+    defaults = ExperimentConfig()
+    own = []
+    for section, key in _SCALE_KEYS:
+        part = experiment.get(section)
+        default = getattr(getattr(defaults, section), key)
+        if isinstance(part, dict) and key in part and part[key] != default:
+            own.append(f"{section}.{key}")
+    return own
+
+
 def _runs_part(data: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in data.items() if k != "predictions"}
 
@@ -264,11 +297,9 @@ def load_preset_file(path: str | Path) -> StudyPreset:
     """Reads a preset from a YAML file (its ``name`` defaults to the file's stem)."""
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as error:
-        raise PresetError(f"cannot read preset {path}: {error}") from None
-    except yaml.YAMLError as error:
-        raise PresetError(f"{path} is not valid YAML: {error}") from None
+        data = read_yaml(path, "preset")
+    except YamlRefused as error:
+        raise PresetError(str(error)) from None
     if isinstance(data, dict):
         data.setdefault("name", path.stem)
     return preset_from_dict(data, str(path))

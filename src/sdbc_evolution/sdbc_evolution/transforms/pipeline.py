@@ -25,6 +25,7 @@ from typing import Annotated, Any
 
 import numpy as np
 from pydantic import BeforeValidator
+from sdbc_sim.limits import excerpt
 from sdbc_sim.parts import PartSpec, Registry, at
 from sdbc_sim.settings import Field, SettingsError, settings
 
@@ -126,7 +127,7 @@ def parse_transforms(
         return ()
     if not isinstance(declaration, (list, tuple)):
         raise SettingsError.of(
-            ((where, f"expected a list of transforms, got {declaration!r}"),)
+            ((where, f"expected a list of transforms, got {excerpt(declaration)}"),)
         )
     specs = tuple(
         TransformSpec.parse(item, at(where, str(i)))

@@ -37,9 +37,11 @@ from typing import Any
 
 import yaml
 
+from sdbc_sim.limits import MAX_STEPS, excerpt
 from sdbc_sim.parts import PartError, group_entry_points, load_entry_point
 from sdbc_sim.settings import SettingsError, is_settings, load
 from sdbc_sim.task import Task
+from sdbc_sim.yaml_input import YamlRefused, parse_yaml
 
 ENTRY_POINT_GROUP = "sdbc.tasks"
 """Entry point group under which installed distributions register their tasks."""
@@ -118,7 +120,7 @@ def resolve_task(reference: str) -> type[Task]:
     """
     if not isinstance(reference, str) or not reference:
         raise UnknownTask(
-            f"a task reference must be a non-empty string, got {reference!r}"
+            f"a task reference must be a non-empty string, got {excerpt(reference)}"
         )
     tasks = available_tasks()
     if reference in tasks:
@@ -221,9 +223,16 @@ def task_settings(task_class: type[Task], overrides: Mapping[str, Any]) -> Any:
 
     Raises:
         SettingsError: Naming each unknown setting or bad value (its paths are the
-            settings' names: prefix them with where they came from).
+            settings' names: prefix them with where they came from), or a
+            ``max_steps`` beyond :data:`sdbc_sim.limits.MAX_STEPS`.
     """
-    return load(task_class.config_class, overrides)
+    made = load(task_class.config_class, overrides)
+    max_steps = getattr(made, "max_steps", None)
+    if isinstance(max_steps, int) and max_steps > MAX_STEPS:
+        raise SettingsError.of(
+            (("max_steps", f"{max_steps} is more than MAX_STEPS={MAX_STEPS}"),)
+        )
+    return made
 
 
 def parse_task_config(text: str) -> dict[str, Any]:
@@ -237,15 +246,15 @@ def parse_task_config(text: str) -> dict[str, Any]:
         ValueError: If the text is not YAML or not a mapping with string keys.
     """
     try:
-        data = yaml.safe_load(text) if text.strip() else {}
-    except yaml.YAMLError as error:
-        raise ValueError(f"task_config: not valid YAML ({error})") from None
+        data = parse_yaml(text, "task_config") if text.strip() else {}
+    except YamlRefused as error:
+        raise ValueError(str(error)) from None
     if data is None:
         return {}
     if not isinstance(data, Mapping) or not all(isinstance(k, str) for k in data):
         raise ValueError(
             f"task_config: expected a mapping of task settings such as "
-            f"'{{max_steps: 300}}', got {text!r}"
+            f"'{{max_steps: 300}}', got {excerpt(text)}"
         )
     return dict(data)
 

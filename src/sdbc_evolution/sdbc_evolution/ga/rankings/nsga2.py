@@ -26,6 +26,7 @@ moocore, alive-progress, ...); 2 ms is under 0.1% of a generation, so numpy it i
 from __future__ import annotations
 
 import numpy as np
+from sdbc_sim.limits import excerpt
 
 
 def _check_objectives(objectives: np.ndarray) -> np.ndarray:
@@ -140,7 +141,9 @@ def nsga2_order(
     """
     objectives = _check_objectives(objectives)
     if tie_break not in TIE_BREAKS:
-        raise ValueError(f"tie_break must be one of {TIE_BREAKS}, got {tie_break!r}")
+        raise ValueError(
+            f"tie_break must be one of {TIE_BREAKS}, got {excerpt(tie_break)}"
+        )
     fronts = non_dominated_fronts(objectives)
     if tie_break == "crowding":
         key = crowding_distance(objectives, fronts)

@@ -1,0 +1,202 @@
+"""Values are checked where they enter a run, and a run's settings are resolved
+completely (every override combined, every limit known) before its directory
+exists."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from evolution_helpers import TINY_RUN_YAML, ToyEvaluator
+from sdbc_evolution.characterise.evaluation import Evaluation
+from sdbc_evolution.graph.live_evaluator import LiveEvaluator
+from sdbc_evolution.run.cli import main
+from sdbc_evolution.run.evaluators import (
+    DaskEvaluator,
+    Evaluator,
+    LocalEvaluator,
+    ValuesOutOfRange,
+    check_values,
+)
+
+HERE = Path(__file__).resolve().parent
+TASKS = HERE / "boundary_tasks.py"
+
+
+def evaluation(fitness: float = 0.5, task: float = 0.5, sdbc: float = 3.0):
+    return Evaluation(
+        fitness=np.full(2, fitness),
+        trial_fitness=np.full((2, 3), fitness),
+        behaviours={"task": np.full((2, 2), task), "sdbc": np.full((2, 4), sdbc)},
+    )
+
+
+def test_values_in_the_contract_pass() -> None:
+    check_values(evaluation(fitness=1.0, task=0.0, sdbc=-40.0), "t")
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"fitness": 20.0}, "trial fitness 20.0 at genome 0, trial 0"),
+        ({"fitness": -0.3}, "trial fitness -0.3"),
+        ({"fitness": float("nan")}, "trial fitness nan"),
+        ({"task": 19.0}, "characterisation 'task' 19.0 at genome 0, dimension 0"),
+        ({"sdbc": float("inf")}, "characterisation 'sdbc' inf .* finite"),
+    ],
+)
+def test_values_outside_the_contract_are_refused(values, message) -> None:
+    with pytest.raises(ValuesOutOfRange, match=message):
+        check_values(evaluation(**values), "t")
+
+
+class OutsideAnswers(ToyEvaluator):
+    """What an outside simulator answering fitness 20 hands the run."""
+
+    def _run(self, genomes, seeds, bounds):
+        parts = super()._run(genomes, seeds, bounds)
+        for part in parts:
+            part.trial_fitness = part.trial_fitness * 0 + 20.0
+            part.fitness = part.fitness * 0 + 20.0
+        return parts
+
+
+def test_every_evaluator_checks_what_comes_back() -> None:
+    # The live graph's evaluator (and through it an outside simulator), the
+    # local and the Dask ones all come through Evaluator.evaluate.
+    for kind in (LiveEvaluator, LocalEvaluator, DaskEvaluator):
+        assert kind.evaluate is Evaluator.evaluate, kind
+    genomes, seeds = np.zeros((4, 6)), np.arange(8, dtype=np.int64).reshape(4, 2)
+    with pytest.raises(ValuesOutOfRange, match="trial fitness 20.0"):
+        OutsideAnswers().evaluate(genomes, seeds)
+
+
+def tiny_config(tmp_path: Path, task: str) -> Path:
+    path = tmp_path / "run.yaml"
+    path.write_text(TINY_RUN_YAML.replace("task: gate_escape", f"task: {task}"))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("task", "message"),
+    [
+        ("NegativeFitness", "returned trial fitness -"),
+        ("CharacterisationNineteen", "returned characterisation 'task' "),
+    ],
+)
+def test_a_task_breaking_the_ranges_stops_its_run_with_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], task: str, message: str
+) -> None:
+    config = tiny_config(tmp_path, f"{TASKS}:{task}")
+    out = tmp_path / "run"
+    argv = ["--config", str(config), "--out", str(out), "--workers", "1"]
+    assert main([*argv, "--quiet", "--no-gif"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "contract says in [0, 1]" in err, err
+    assert len(err.splitlines()) == 1 and f"--resume --out {out}" in err
+    # Nothing of the bad generation was written.
+    assert (
+        not (out / "generations.csv").exists()
+        or len((out / "generations.csv").read_text().splitlines()) <= 1
+    )
+
+
+def test_combined_evaluation_overrides_all_hold() -> None:
+    from sdbc_evolution.run.request import ConfigRequest, resolve_config
+
+    config = resolve_config(ConfigRequest(trials=3, physics="kinematic"))
+    assert (config.evaluation.trials, config.evaluation.physics) == (3, "kinematic")
+    config = resolve_config(
+        ConfigRequest(population=12, trials=4, physics="kinematic", generations=5)
+    )
+    assert config.ga.population_size == 12 and config.generations == 5
+    assert (config.evaluation.trials, config.evaluation.physics) == (4, "kinematic")
+
+
+def test_a_novelty_k_no_generation_can_reach_is_refused_and_a_large_one_noted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sdbc_evolution.run.config import ConfigError, config_from_dict
+
+    small = {"ga": {"population_size": 10}, "novelty": {"archive_size": 20}}
+    with pytest.raises(ConfigError, match=r"novelty.k: 500 is more than the 29"):
+        config_from_dict({**small, "novelty": {"k": 500, "archive_size": 20}})
+    config = config_from_dict({"ga": {"population_size": 10}, "novelty": {"k": 500}})
+    [note] = config.notes()
+    assert "novelty.k=500 is more than the 9 other individuals" in note
+    assert "until the archive holds 491 entries" in note
+    assert config_from_dict({"ga": {"population_size": 16}}).notes() == []
+
+
+def test_workers_are_bounded_and_counted_in_the_memory_check(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sdbc_evolution.run.config import config_from_dict
+    from sdbc_evolution.run.evaluators import TaskInfo
+    from sdbc_evolution.run.experiment import task_spec
+    from sdbc_evolution.run.footprint import run_footprint
+    from sdbc_sim.limits import MAX_WORKERS, WORKER_BYTES
+
+    out = tmp_path / "run"
+    argv = ["--out", str(out), "--quiet", "--no-gif"]
+    assert main([*argv, "--workers", str(MAX_WORKERS + 1)]) == 2
+    err = capsys.readouterr().err
+    assert f"--workers: must be in [1, MAX_WORKERS={MAX_WORKERS}]" in err
+    assert not out.exists()
+    config = config_from_dict({"ga": {"population_size": 10}})
+    info = TaskInfo.of(task_spec(config))
+    one = run_footprint(config, info, workers=1)
+    many = run_footprint(config, info, workers=100_000)
+    # One process per individual at most: 10, not 100 000.
+    assert many.total - one.total == 10 * WORKER_BYTES
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["--connect-timeout", "1e300", "--scheduler", "tcp://127.0.0.1:9"],
+            "--connect-timeout: must be in (0, MAX_CONNECT_TIMEOUT=86400]",
+        ),
+        (["--connect-timeout", "nan"], "--connect-timeout: must be in"),
+    ],
+)
+def test_evaluator_flags_beyond_their_limits_are_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv, message
+) -> None:
+    out = tmp_path / "run"
+    assert main([*argv, "--out", str(out), "--quiet", "--no-gif"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_max_steps_beyond_the_limit_is_refused_before_the_run_directory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "run.yaml"
+    config.write_text(
+        TINY_RUN_YAML.replace("{max_steps: 60}", "{max_steps: 1000000000000}")
+    )
+    out = tmp_path / "run"
+    assert main(["--config", str(config), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "task_config.max_steps: 1000000000000 is more than MAX_STEPS" in err
+    assert len(err.splitlines()) == 1 and not out.exists()
+
+
+def test_a_small_preset_without_generations_is_refused() -> None:
+    from sdbc_evolution.study.presets import PresetError, load_preset, preset_from_dict
+
+    small = {
+        "name": "mine",
+        "tasks": ["gate_escape", "predator_prey"],
+        "generations": {"gate_escape": 5},
+        "experiment": {"ga": {"population_size": 20}},
+    }
+    with pytest.raises(PresetError, match=r"generations: not given for \['predator"):
+        preset_from_dict(small)
+    preset_from_dict({**small, "generations": {"gate_escape": 5, "predator_prey": 5}})
+    # At the paper's own scale, the paper's generations are what it asks for.
+    assert load_preset("paper").generations_of("gate_escape") == 500
