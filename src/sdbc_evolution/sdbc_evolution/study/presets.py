@@ -46,6 +46,7 @@ from sdbc_evolution.run.config import (
     check_task_config,
     config_from_dict,
 )
+from sdbc_evolution.study.champions import MIN_CHAMPION_TRIALS
 from sdbc_evolution.study.paper import PAPER_TASKS
 from sdbc_evolution.study.predictions import Prediction
 
@@ -95,6 +96,10 @@ class StudyPreset:
     experiment: dict[str, Any] = field(default_factory=dict)
     """Settings shared by every run (sections ``ga``, ``novelty``, ``evaluation``,
     ...; an ``sdbc-evolve`` configuration without the keys in :data:`STUDY_KEYS`)."""
+    champion_trials: Annotated[int, Field(ge=0)] = 0
+    """Trials each run's champion and last best are re-evaluated in once the run
+    is done (0: not at all; else at least ``MIN_CHAMPION_TRIALS``; see
+    :mod:`sdbc_evolution.study.champions`)."""
 
     def __post_init__(self) -> None:
         check(len(set(self.tasks)) == len(self.tasks), "tasks", "has duplicates")
@@ -138,6 +143,12 @@ class StudyPreset:
         for key in ("generations", "task_config"):
             extra = sorted(set(getattr(self, key)) - set(self.tasks))
             check(not extra, key, f"names tasks not in the study: {extra}")
+        check(
+            self.champion_trials == 0 or self.champion_trials >= MIN_CHAMPION_TRIALS,
+            "champion_trials",
+            f"must be 0 (off) or at least {MIN_CHAMPION_TRIALS}, got "
+            f"{self.champion_trials}",
+        )
         reserved = sorted(set(self.experiment) & set(STUDY_KEYS))
         check(
             not reserved,
@@ -218,6 +229,12 @@ class StudyPreset:
             "generations": {t: self.generations_of(t) for t in self.tasks},
             "task_config": {t: dict(c) for t, c in self.task_config.items()},
             "experiment": to_plain(self.experiment),
+            # Left out when off: the study.yaml of earlier studies stays as it was.
+            **(
+                {"champion_trials": self.champion_trials}
+                if self.champion_trials
+                else {}
+            ),
             **(
                 {"predictions": [to_plain(p) for p in self.predictions]}
                 if self.predictions
@@ -238,6 +255,7 @@ class StudyPreset:
             "population": config.ga.population_size,
             "trials per individual": config.evaluation.trials,
             "re-evaluation trials": config.evaluation.reevaluation_trials,
+            "champion re-evaluation trials": self.champion_trials,
             "generations": {t: self.generations_of(t) for t in self.tasks},
         }
 
