@@ -89,3 +89,54 @@ def test_a_run_ends_with_its_champions_reevaluated_and_resumes_them(
     other = plan[1].path / CHAMPION_FILE
     other.write_text(other.read_text().replace('"trials": 50', '"trials": 49'))
     assert run_status(plan[1]).state is RunProgress.REEVALUATE
+
+
+def test_the_digest_keeps_the_champions_and_verdicts_use_them(
+    tmp_path: Path,
+) -> None:
+    from sdbc_evolution.study.analysis import analyse, analyse_digest_dir
+    from sdbc_evolution.study.digest import DIGEST_DIR, read_digest
+    from sdbc_evolution.study.exploration import SomSettings
+    from sdbc_evolution.study.findings import AnalysisSettings
+
+    preset = preset_from_dict(CHAMPIONS)
+    root = tmp_path / "study"
+    run_study(preset, root, execution=Execution(workers=1), quiet=True)
+    settings = AnalysisSettings(som=SomSettings(rows=3, columns=3, iterations=200))
+    analysis = analyse(root, tmp_path / "report", settings)
+    digest = read_digest(tmp_path / "report" / DIGEST_DIR)
+    for spec, run in zip(study_plan(preset, root), digest.runs, strict=False):
+        judged = read_champions(root / run.name)
+        assert run.champions is not None
+        assert run.champions.fitness == judged.champion.fitness
+        assert run.champions.last_fitness == judged.last.fitness
+        assert run.champions.generation == judged.champion.generation
+    task = analysis.tasks[0]
+    assert task.statistic.startswith("champion re-evaluated in 50 fresh trials")
+    assert task.bests["fit"].tolist() == [
+        r.champions.fitness for r in digest.of("gate_escape", "fit") if r.champions
+    ]
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "champion re-evaluated in 50 fresh trials" in report
+    # From the digest alone: the same numbers.
+    again = analyse_digest_dir(tmp_path / "report" / DIGEST_DIR, tmp_path / "again")
+    assert again.tasks[0].bests["fit"].tolist() == task.bests["fit"].tolist()
+
+    # A run whose champions are missing is left out and named.
+    (root / digest.runs[0].name / CHAMPION_FILE).unlink()
+    from sdbc_evolution.study.rundirs import load_study
+
+    study = load_study(root)
+    assert [p.name for p in study.problems] == [digest.runs[0].name]
+    assert "champions not re-evaluated" in study.problems[0].reason
+
+
+def test_an_old_digest_says_it_uses_the_curve_maximum(tmp_path: Path) -> None:
+    from sdbc_evolution.study.analysis import analyse_digest_dir
+
+    studies = Path(__file__).resolve().parents[3] / "docs" / "study"
+    analysis = analyse_digest_dir(studies / "local" / "digest", tmp_path)
+    assert all(
+        t.statistic.startswith("highest point of the curve") for t in analysis.tasks
+    )
+    assert "10 trials; no champion re-evaluation" in analysis.tasks[0].statistic

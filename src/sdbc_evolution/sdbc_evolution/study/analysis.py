@@ -13,7 +13,7 @@ before, with the same tables and figures to the byte. It writes::
       figures/bests_<task>.png       boxplots of each run's best
       figures/exploration_<task>.png SOM exploration maps
       tables/curves_<task>.csv       generation, per treatment mean, sd, n
-      tables/bests_<task>.csv        treatment, run, best
+      tables/bests_<task>.csv        treatment, run, best, last, statistic
       tables/mann_whitney_<task>.csv pairwise tests
       tables/relevance_<task>.csv    MI of every SDBC dimension (NS-SD+ runs)
       tables/relevance_<task>_<treatment>.csv   the same for any other weighting
@@ -64,7 +64,12 @@ from sdbc_evolution.study.findings import Analysis, AnalysisSettings, TaskAnalys
 from sdbc_evolution.study.quality import (
     best_curves,
     pairwise_tests,
+    run_best,
     run_bests,
+    run_last,
+    run_lasts,
+    run_statistic,
+    task_statistic,
 )
 from sdbc_evolution.study.reduce import reduce_study
 from sdbc_evolution.study.relevance import (
@@ -140,17 +145,19 @@ def analyse_task(
     _write_csv(tables / f"curves_{task}.csv", header, rows)
 
     bests = run_bests(digest)
+    lasts = run_lasts(digest)
     best_runs = {t: tuple(r.name for r in digest.of(t)) for t in bests}
     _write_csv(
         tables / f"bests_{task}.csv",
-        ["treatment", "run", "best"],
+        ["treatment", "run", "best", "last", "statistic"],
         [
-            [t, name, value]
+            [t, run.name, run_best(run), run_last(run), run_statistic(run)]
             for t in bests
-            for name, value in zip(best_runs[t], bests[t], strict=True)
+            for run in digest.of(t)
         ],
     )
     tests = pairwise_tests(task, bests)
+    last_tests = pairwise_tests(task, lasts)
     _write_csv(
         tables / f"mann_whitney_{task}.csv",
         [
@@ -238,6 +245,8 @@ def analyse_task(
         bests=bests,
         best_runs=best_runs,
         tests=tests,
+        statistic=task_statistic(digest),
+        last_tests=last_tests,
         relevance=relevance,
         other_relevance=other_relevance,
         maps=maps,

@@ -189,9 +189,7 @@ def read_champions(path: Path) -> Champions:
     return champions
 
 
-def check_champions(
-    path: Path, seeds: np.ndarray, generations: int
-) -> Champions:
+def check_champions(path: Path, seeds: np.ndarray, generations: int) -> Champions:
     """The run's champion file if it is the one the study asks for: these
     ``seeds``, the champion the run's ``generations.csv`` names, and the last of
     its ``generations`` generations (raises :class:`ChampionError` otherwise)."""
@@ -261,3 +259,35 @@ def reevaluate_champions(
     )
     atomic_write_bytes(path / CHAMPION_FILE, champions.to_json())
     return champions
+
+
+@dataclass(frozen=True)
+class ChampionSummary:
+    """What a study's digest keeps of a run's champions.
+
+    Attributes:
+        trials: Trials each was re-evaluated in.
+        generation: The champion's generation.
+        fitness: The champion's re-evaluated fitness (what fitness verdicts use).
+        mean: The arithmetic mean of its trials.
+        last_fitness: The last generation's best, re-evaluated.
+        last_mean: The arithmetic mean of its trials.
+    """
+
+    trials: int
+    generation: int
+    fitness: float
+    mean: float
+    last_fitness: float
+    last_mean: float
+
+    @classmethod
+    def of(cls, champions: Champions) -> ChampionSummary:
+        return cls(
+            trials=champions.trials,
+            generation=champions.champion.generation,
+            fitness=champions.champion.fitness,
+            mean=champions.champion.mean,
+            last_fitness=champions.last.fitness,
+            last_mean=champions.last.mean,
+        )

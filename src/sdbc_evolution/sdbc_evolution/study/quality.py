@@ -6,8 +6,13 @@ The paper's figure 2 and its significance tests, from the run directories:
   re-evaluated in fresh trials (``reevaluated_fitness``; without re-evaluation,
   ``best_fitness``, which the selection of the best biases upwards); a treatment's
   curve is the mean over its runs, with the standard error of that mean as a band;
-- the **best** of a run is the highest value of its curve: the best controller it
-  found, judged on fresh trials;
+- the **best** of a run is its champion's fitness re-evaluated in many trials no
+  run used (the best of the generation at its curve's highest point, see
+  :mod:`.champions`) where the study re-evaluated champions; in a study that did
+  not (the earlier digests), the highest value of its curve, a maximum over
+  noisy few-trial estimates, biased upwards. :func:`run_statistic` says which;
+  the **last** of a run is its last generation's best, re-evaluated the same way
+  (or the curve's last value);
 - **Mann-Whitney U** (two-sided, ``scipy.stats.mannwhitneyu``) compares the bests of
   every pair of treatments on a task. Besides U and p, the table gives the common
   language effect size A = U / (n_a n_b), the chance that a run of treatment a beats
@@ -28,8 +33,42 @@ from sdbc_evolution.study.digest import RunDigest, TaskDigest
 
 
 def run_best(run: RunDigest) -> float:
-    """The highest value of the run's curve."""
+    """The run's champion re-evaluated, or else the highest value of its curve."""
+    if run.champions is not None:
+        return run.champions.fitness
     return float(np.nanmax(run.curve))
+
+
+def run_last(run: RunDigest) -> float:
+    """The run's last best re-evaluated, or else the last value of its curve."""
+    if run.champions is not None:
+        return run.champions.last_fitness
+    return float(run.curve[-1])
+
+
+def run_statistic(run: RunDigest) -> str:
+    """Which statistic :func:`run_best` takes of the run, in words."""
+    if run.champions is not None:
+        return (
+            f"champion re-evaluated in {run.champions.trials} fresh trials "
+            f"(fitness, {run.config.evaluation.fitness_mean} mean)"
+        )
+    trials = run.config.evaluation.reevaluation_trials
+    if run.curve_source == "reevaluated_fitness":
+        return (
+            f"highest point of the curve (each generation's best re-evaluated in "
+            f"{trials} trials; no champion re-evaluation in this digest)"
+        )
+    return (
+        "highest point of the curve (best fitness as selection saw it; no "
+        "re-evaluation in this digest)"
+    )
+
+
+def task_statistic(task: TaskDigest) -> str:
+    """The statistics :func:`run_best` takes of the task's runs ('; ' between
+    several, which a study of one preset never has)."""
+    return "; ".join(dict.fromkeys(run_statistic(r) for r in task.runs))
 
 
 @dataclass(frozen=True)
@@ -91,6 +130,11 @@ def best_curves(task: TaskDigest) -> Curves:
 def run_bests(task: TaskDigest) -> dict[str, np.ndarray]:
     """Each run's best, per treatment (run order as found)."""
     return {t: np.array([run_best(r) for r in task.of(t)]) for t in task.treatments()}
+
+
+def run_lasts(task: TaskDigest) -> dict[str, np.ndarray]:
+    """Each run's last best, per treatment (run order as found)."""
+    return {t: np.array([run_last(r) for r in task.of(t)]) for t in task.treatments()}
 
 
 @dataclass(frozen=True)

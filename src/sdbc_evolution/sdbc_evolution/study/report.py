@@ -30,6 +30,7 @@ from sdbc_evolution.study.findings import Analysis, TaskAnalysis
 from sdbc_evolution.study.paper import is_paper_task, paper_generations, task_title
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS
+from sdbc_evolution.study.quality import PairTest
 from sdbc_evolution.study.relevance import BITS, task_specific_features
 from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
@@ -198,24 +199,8 @@ def _claims_table(claims: list[Claim]) -> list[str]:
     return markdown_table(["#", "claim", "paper", "ours", "our p", "verdict"], rows)
 
 
-def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
-    out = analysis.out
-    title = task_title(ta.task)
-    lines = [f"## {title[0].upper()}{title[1:]}", ""]
-    lines += [
-        f"![best fitness per generation]({_rel(ta.figures['curves'], out)}) "
-        f"![best of each run]({_rel(ta.figures['bests'], out)})",
-        "",
-        "Left: the best individual of each generation re-evaluated in fresh trials, "
-        "mean over runs, band +-1 standard error. Right: each run's best (the highest "
-        "point of its curve); boxes at the quartiles, whiskers at 1.5 IQR, dots are "
-        "runs.",
-        "",
-        "Mann-Whitney U (two-sided) on each run's best; A = U / (n_a n_b) is the "
-        "chance that a run of the first treatment beats one of the second.",
-        "",
-    ]
-    lines += markdown_table(
+def _tests_table(tests: list[PairTest]) -> list[str]:
+    return markdown_table(
         ["a", "b", "median a", "median b", "mean a", "mean b", "U", "A", "p"],
         [
             [
@@ -229,9 +214,37 @@ def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
                 f"{t.effect:.2f}",
                 _p(t.p),
             ]
-            for t in ta.tests
+            for t in tests
         ],
     )
+
+
+def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
+    out = analysis.out
+    title = task_title(ta.task)
+    lines = [f"## {title[0].upper()}{title[1:]}", ""]
+    lines += [
+        f"![best fitness per generation]({_rel(ta.figures['curves'], out)}) "
+        f"![best of each run]({_rel(ta.figures['bests'], out)})",
+        "",
+        "Left: the best individual of each generation re-evaluated in fresh trials, "
+        "mean over runs, band +-1 standard error. Right: each run's best; boxes at "
+        "the quartiles, whiskers at 1.5 IQR, dots are runs.",
+        "",
+        f"A run's best, which the tests and the fitness verdicts use: {ta.statistic}.",
+        "",
+        "Mann-Whitney U (two-sided) on each run's best; A = U / (n_a n_b) is the "
+        "chance that a run of the first treatment beats one of the second.",
+        "",
+    ]
+    lines += _tests_table(ta.tests)
+    if ta.last_tests:
+        lines += [
+            "The same tests on each run's last generation's best (re-evaluated "
+            "like its best; reported beside, deciding no verdict):",
+            "",
+        ]
+        lines += _tests_table(ta.last_tests)
     lines += _relevance_section(ta, analysis)
     lines += _other_relevance_sections(ta, analysis)
     lines += _exploration_section(ta, analysis)
