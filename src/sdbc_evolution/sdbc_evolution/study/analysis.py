@@ -14,7 +14,8 @@ before, with the same tables and figures to the byte. It writes::
       figures/exploration_<task>.png SOM exploration maps
       tables/curves_<task>.csv       generation, per treatment mean, sd, n
       tables/bests_<task>.csv        treatment, run, best, last, statistic
-      tables/mann_whitney_<task>.csv pairwise tests
+      tables/mann_whitney_<task>.csv pairwise tests (A with its 95 % interval,
+                                     raw and Holm-adjusted p)
       tables/relevance_<task>.csv    MI of every SDBC dimension (NS-SD+ runs)
       tables/relevance_<task>_<treatment>.csv   the same for any other weighting
                                      treatment (its measure's units)
@@ -22,7 +23,8 @@ before, with the same tables and figures to the byte. It writes::
       tables/exploration_<task>.npz  per-run shares, mean shares, percentiles, region
       tables/cost.csv                measured rates per task
       tables/projection.csv          the paper preset's wall time on W workers
-      tables/claims.csv              every claim with our p-value and verdict
+      tables/claims.csv              every claim: raw and Holm p, A and its
+                                     interval, the statistic used, verdict
       tables/predictions.csv         the preset's own predictions, judged (if any)
       tables/problems.csv            runs left out, and why
 """
@@ -62,6 +64,7 @@ from sdbc_evolution.study.digest import (
 from sdbc_evolution.study.figures import plot_bests, plot_curves, plot_exploration
 from sdbc_evolution.study.findings import Analysis, AnalysisSettings, TaskAnalysis
 from sdbc_evolution.study.quality import (
+    PairTest,
     best_curves,
     pairwise_tests,
     run_best,
@@ -171,7 +174,10 @@ def analyse_task(
             "mean_b",
             "U",
             "A",
+            "A_low",
+            "A_high",
             "p",
+            "p_holm",
         ],
         [
             [
@@ -185,7 +191,10 @@ def analyse_task(
                 s.mean_b,
                 s.u,
                 s.effect,
+                s.effect_low,
+                s.effect_high,
                 s.p,
+                s.p_holm,
             ]
             for s in tests
         ],
@@ -330,6 +339,17 @@ def analyse_parts(
     return analyse_digest(digest, out, settings, command)
 
 
+TEST_COLUMNS = ("p_holm", "A", "A_low", "A_high")
+"""A test's columns in the claims and predictions tables beside its raw p."""
+
+
+def _test_cells(test: PairTest | None) -> list[Any]:
+    if test is None:
+        return ["", "", "", ""]
+    holm = "" if test.p_holm is None else test.p_holm
+    return [holm, test.effect, test.effect_low, test.effect_high]
+
+
 def analyse_digest(
     digest: StudyDigest,
     out: Path,
@@ -348,7 +368,7 @@ def analyse_digest(
     tasks = [analyse_task(t, settings, out) for t in digest.task_digests]
     claims: list[Claim] = []
     for ta in tasks:
-        claims += quality_claims(ta.task, ta.tests, settings.alpha)
+        claims += quality_claims(ta.task, ta.tests, settings.alpha, ta.statistic)
     for ta in tasks:
         claims += relevance_claims(ta.task, ta.relevance)
     for ta in tasks:
@@ -358,7 +378,17 @@ def analyse_digest(
     if predicted:
         _write_csv(
             tables / "predictions.csv",
-            ["task", "prediction", "a", "b", "rule", "evidence", "p", "outcome"],
+            [
+                "task",
+                "prediction",
+                "a",
+                "b",
+                "rule",
+                "evidence",
+                "p",
+                *TEST_COLUMNS,
+                "outcome",
+            ],
             [
                 [
                     r.task,
@@ -368,6 +398,7 @@ def analyse_digest(
                     r.prediction.rule,
                     r.evidence,
                     r.p,
+                    *_test_cells(r.test),
                     r.outcome,
                 ]
                 for r in predicted
@@ -375,7 +406,17 @@ def analyse_digest(
         )
     _write_csv(
         tables / "claims.csv",
-        ["topic", "task", "claim", "paper", "ours", "p", "verdict"],
+        [
+            "topic",
+            "task",
+            "claim",
+            "paper",
+            "ours",
+            "p",
+            *TEST_COLUMNS,
+            "statistic",
+            "verdict",
+        ],
         [
             [
                 c.topic,
@@ -384,6 +425,8 @@ def analyse_digest(
                 c.paper,
                 c.ours,
                 "" if c.p is None else c.p,
+                *_test_cells(c.test),
+                c.statistic,
                 c.verdict.value,
             ]
             for c in claims

@@ -22,9 +22,11 @@ from sdbc_sim.tasks.resource_sharing import NO_CHARGE_OPTIMUM
 from sdbc_evolution.ga.treatments import label
 from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.study.claims import (
+    EQUIVALENCE_MARGIN,
     PAPER_RELEVANCE,
     Claim,
     Verdict,
+    totals,
 )
 from sdbc_evolution.study.findings import Analysis, TaskAnalysis
 from sdbc_evolution.study.paper import is_paper_task, paper_generations, task_title
@@ -184,6 +186,12 @@ def _wall_times(analysis: Analysis) -> list[str]:
     return markdown_table(["task", "wall time", "sessions", "how"], rows)
 
 
+def _interval(test: PairTest | None) -> str:
+    if test is None:
+        return ""
+    return f"{test.effect:.2f} [{test.effect_low:.2f}, {test.effect_high:.2f}]"
+
+
 def _claims_table(claims: list[Claim]) -> list[str]:
     rows = [
         [
@@ -192,16 +200,66 @@ def _claims_table(claims: list[Claim]) -> list[str]:
             c.paper,
             c.ours,
             _p(c.p),
+            "" if c.test is None else _p(c.test.p_holm),
+            _interval(c.test),
             f"**{c.verdict.value}**",
         ]
         for i, c in enumerate(claims)
     ]
-    return markdown_table(["#", "claim", "paper", "ours", "our p", "verdict"], rows)
+    return markdown_table(
+        ["#", "claim", "paper", "ours", "our p", "Holm p", "A [95 % CI]", "verdict"],
+        rows,
+    )
+
+
+def _rules_text(alpha: float) -> str:
+    low, high = EQUIVALENCE_MARGIN
+    return (
+        f"Verdicts at alpha = {alpha} on two-sided Mann-Whitney tests whose p is "
+        "Holm-adjusted within each task's family of fitness tests (every pair of "
+        "its treatments) and, apart, of exploration tests; A = U / (n_a n_b) is "
+        "the chance that a run of the first treatment beats one of the second, "
+        "with its 95 % bootstrap interval. *Agree*: a claimed difference is "
+        "significant (Holm) in the paper's direction; a claim of no difference has "
+        f"A's whole interval inside [{low}, {high}] (Vargha and Delaney's 'small' "
+        "bounds); a claim of not below has the interval's lower end above "
+        f"{low}. *Disagree*: significant (Holm) the other way. *Inconclusive*: "
+        "anything else, our runs cannot tell (a p above alpha is not agreement). "
+        "The rules are in `sdbc_evolution/study/claims.py`."
+    )
+
+
+def _totals_line(claims: list[Claim]) -> str:
+    counts = totals(claims)
+    shared = len(claims) - sum(counts.values())
+    line = (
+        f"Of {len(claims)} claims: {counts[Verdict.AGREE]} agree, "
+        f"{counts[Verdict.DISAGREE]} disagree, {counts[Verdict.INCONCLUSIVE]} "
+        "inconclusive"
+    )
+    if shared:
+        line += (
+            f", counting a test once where two claims rest on it with one verdict "
+            f"({shared} such {'claim' if shared == 1 else 'claims'} not counted "
+            "again)"
+        )
+    return line + "."
 
 
 def _tests_table(tests: list[PairTest]) -> list[str]:
     return markdown_table(
-        ["a", "b", "median a", "median b", "mean a", "mean b", "U", "A", "p"],
+        [
+            "a",
+            "b",
+            "median a",
+            "median b",
+            "mean a",
+            "mean b",
+            "U",
+            "A [95 % CI]",
+            "p",
+            "Holm p",
+        ],
         [
             [
                 label(t.a),
@@ -211,8 +269,9 @@ def _tests_table(tests: list[PairTest]) -> list[str]:
                 _f(t.mean_a),
                 _f(t.mean_b),
                 _f(t.u),
-                f"{t.effect:.2f}",
+                _interval(t),
                 _p(t.p),
+                _p(t.p_holm),
             ]
             for t in tests
         ],
@@ -234,7 +293,8 @@ def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         f"A run's best, which the tests and the fitness verdicts use: {ta.statistic}.",
         "",
         "Mann-Whitney U (two-sided) on each run's best; A = U / (n_a n_b) is the "
-        "chance that a run of the first treatment beats one of the second.",
+        "chance that a run of the first treatment beats one of the second, with its "
+        "95 % bootstrap interval; Holm p is adjusted over the task's tests below.",
         "",
     ]
     lines += _tests_table(ta.tests)
@@ -443,7 +503,6 @@ def _physics_difference(config: ExperimentConfig) -> str:
 
 def _differences(analysis: Analysis) -> list[str]:
     claims = analysis.claims
-    counts = Counter(c.verdict for c in claims)
     study = analysis.digest
     tasks = [ta.task for ta in analysis.tasks if is_paper_task(ta.task)]
     some = study.of(tasks[0])[0].config
@@ -456,9 +515,7 @@ def _differences(analysis: Analysis) -> list[str]:
     lines = [
         "## Where we differ, and why we might",
         "",
-        f"Of {len(claims)} claims: {counts[Verdict.AGREE]} agree, "
-        f"{counts[Verdict.DISAGREE]} disagree, {counts[Verdict.INCONCLUSIVE]} "
-        "inconclusive.",
+        _totals_line(claims),
         "",
     ]
     disagreements = [c for c in claims if c.verdict is Verdict.DISAGREE]
@@ -732,12 +789,7 @@ def write_report(
 def _claims_section(analysis: Analysis) -> list[str]:
     lines = ["## The paper's claims, one by one", ""]
     lines += [
-        f"Verdicts at alpha = {analysis.settings.alpha}: *agree* when our "
-        "two-sided Mann-Whitney test is significant in the paper's direction (or, for "
-        "a claim of no difference, not significant), *disagree* when it says the "
-        "opposite, *inconclusive* when our runs cannot tell; A = U / (n_a n_b) is "
-        "the chance that a run of the first treatment beats one of the second. The "
-        "rules are in `sdbc_evolution/study/claims.py`.",
+        _rules_text(analysis.settings.alpha),
         "",
     ]
     for topic, heading in CLAIM_TOPICS.items():
@@ -760,15 +812,11 @@ def _predictions_section(analysis: Analysis) -> list[str]:
     lines = [
         "## The study's predictions",
         "",
-        "What the study's preset predicts, judged on each run's best "
-        f"fitness by a two-sided Mann-Whitney test at alpha = "
-        f"{analysis.settings.alpha}: *held* when the test agrees, *did not hold* "
-        "when it says the opposite, *cannot tell* when a predicted difference does "
-        "not show. A prediction of no difference (or of not below) holds by the "
-        "absence of a significant difference, which few runs give all too easily: "
-        "A = U / (n_a n_b), the chance that a run of the first treatment beats one "
-        "of the second, says how close the treatments were. The rules are in "
-        "`sdbc_evolution/study/claims.py` (`judge_predictions`).",
+        "What the study's preset predicts, judged on each run's best fitness "
+        "by the rules of the paper's claims: *held* where a claim would agree, "
+        "*did not hold* where it would disagree, *cannot tell* otherwise. "
+        + _rules_text(analysis.settings.alpha)
+        + " (`judge_predictions`).",
         "",
     ]
     rows = [
@@ -779,11 +827,24 @@ def _predictions_section(analysis: Analysis) -> list[str]:
             r.prediction.rule_text(),
             r.evidence,
             _p(r.p),
+            "" if r.test is None else _p(r.test.p_holm),
+            _interval(r.test),
             f"**{r.outcome}**",
         ]
         for i, r in enumerate(analysis.predictions)
     ]
     lines += markdown_table(
-        ["#", "prediction", "task", "rule", "ours", "p", "outcome"], rows
+        [
+            "#",
+            "prediction",
+            "task",
+            "rule",
+            "ours",
+            "p",
+            "Holm p",
+            "A [95 % CI]",
+            "outcome",
+        ],
+        rows,
     )
     return lines
