@@ -17,6 +17,8 @@ before, with the same tables and figures to the byte. It writes::
       tables/mann_whitney_<task>.csv pairwise tests (A with its 95 % interval,
                                      raw and Holm-adjusted p)
       tables/relevance_<task>.csv    MI of every SDBC dimension (NS-SD+ runs)
+      tables/relevance_above_chance_<task>.csv  the same, MI above its chance
+                                     level (each run's MI minus its own), ranked
       tables/relevance_<task>_<treatment>.csv   the same for any other weighting
                                      treatment (its measure's units)
       tables/exploration_<task>.csv  per run: uniformity, coverage, high-fitness share
@@ -76,8 +78,10 @@ from sdbc_evolution.study.quality import (
 )
 from sdbc_evolution.study.reduce import reduce_study
 from sdbc_evolution.study.relevance import (
+    ABOVE_CHANCE,
     PAPER_WEIGHTED,
     RelevanceTable,
+    above_chance_table,
     other_relevance_tables,
     relevance_table,
 )
@@ -104,13 +108,20 @@ def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
 
 
 def _write_relevance(path: Path, table: RelevanceTable) -> Path:
+    unit = (
+        "mi_above_chance_bits"
+        if table.measure == ABOVE_CHANCE
+        else "mi_bits"
+        if table.treatment == PAPER_WEIGHTED
+        else "relevance"
+    )
     return _write_csv(
         path,
         [
             "rank",
             "feature",
-            "mean_mi_bits" if table.treatment == PAPER_WEIGHTED else "mean_relevance",
-            "sd_mi_bits" if table.treatment == PAPER_WEIGHTED else "sd_relevance",
+            f"mean_{unit}",
+            f"sd_{unit}",
             "runs",
             "in_task_specific",
             "chance_mi_bits",
@@ -203,6 +214,9 @@ def analyse_task(
     relevance = relevance_table(digest)
     if relevance is not None:
         _write_relevance(tables / f"relevance_{task}.csv", relevance)
+    above = above_chance_table(digest)
+    if above is not None:
+        _write_relevance(tables / f"relevance_above_chance_{task}.csv", above)
     other_relevance = other_relevance_tables(digest)
     for treatment, table in other_relevance.items():
         name = f"relevance_{task}_{treatment_directory(treatment)}.csv"
@@ -257,6 +271,7 @@ def analyse_task(
         statistic=task_statistic(digest),
         last_tests=last_tests,
         relevance=relevance,
+        relevance_above_chance=above,
         other_relevance=other_relevance,
         maps=maps,
         cost=task_cost(digest),
@@ -370,7 +385,7 @@ def analyse_digest(
     for ta in tasks:
         claims += quality_claims(ta.task, ta.tests, settings.alpha, ta.statistic)
     for ta in tasks:
-        claims += relevance_claims(ta.task, ta.relevance)
+        claims += relevance_claims(ta.task, ta.relevance, ta.relevance_above_chance)
     for ta in tasks:
         claims += exploration_claims(ta.maps, settings.alpha)
     predicted = _judge_predictions(digest, tasks, settings.alpha)

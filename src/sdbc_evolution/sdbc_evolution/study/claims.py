@@ -53,7 +53,7 @@ from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.paper import is_paper_task, task_title
 from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.quality import PairTest, holm, mann_whitney
-from sdbc_evolution.study.relevance import RelevanceTable
+from sdbc_evolution.study.relevance import RelevanceTable, chance_pass_rate
 
 ALPHA = 0.05
 """Significance level of every claim (the paper's)."""
@@ -299,33 +299,57 @@ def quality_claims(
     return claims
 
 
-def relevance_claims(task: str, table: RelevanceTable | None) -> list[Claim]:
-    """The paper's claims on feature relevance for ``task``."""
+def relevance_claims(
+    task: str, table: RelevanceTable | None, above: RelevanceTable | None = None
+) -> list[Claim]:
+    """The paper's claims on feature relevance for ``task``, judged on the ranking
+    by MI above chance (``above``) where there is one, else on the raw ranking
+    (``table``); the other ranking's result and each rule's chance pass rate (a
+    random ranking's, :func:`.relevance.chance_pass_rate`) are in the evidence."""
     paper = PAPER_RELEVANCE.get(task)
     if table is None or paper is None:
         return []
+    judged = above if above is not None else table
+    basis = "MI above chance" if above is not None else "raw MI (no chance level here)"
+    statistic = f"NS-SD+ ranking by {basis}"
     title = task_title(task)
     m = len(paper)
-    ours = table.top(m)
-    shared = [f.name for f in paper if f.name in ours.names]
-    overlap = Verdict.AGREE if len(shared) >= math.ceil(m / 2) else Verdict.DISAGREE
-    top = paper[0]
-    rank = table.rank_of(top.name)
+    d = len(judged.names)
+    need = math.ceil(m / 2)
+
+    def overlap(ranking: RelevanceTable) -> list[str]:
+        top = ranking.top(m).names
+        return [f.name for f in paper if f.name in top]
+
+    shared = overlap(judged)
+    listed = sum(f.name in judged.names for f in paper)
+    first = paper[0]
+    rank = judged.rank_of(first.name)
+    other = "" if above is None else f"; raw MI: {len(overlap(table))} of {m}"
     claims = [
         Claim(
             "relevance",
             task,
             f"the most relevant features of {title} are those of the paper's table",
             ", ".join(f.label or f.name for f in paper),
-            f"{len(shared)} of the paper's {m} are in our top {m} "
-            f"({', '.join(shared) or 'none'}); the paper's first, {top.name}, is our "
-            f"#{rank} of {len(table.names)}; our first: {table.names[0]} "
-            f"({table.mean[0]:.2f} bits)",
+            f"by {basis}: {len(shared)} of the paper's {m} are in our top {m} "
+            f"({', '.join(shared) or 'none'}){other}; the paper's first, "
+            f"{first.name}, is our #{rank} of {d}; our first: {judged.names[0]} "
+            f"({judged.mean[0]:.2f} bits); a random ranking passes with "
+            f"probability {chance_pass_rate(d, listed, m, need):.2g}",
             None,
-            overlap,
+            Verdict.AGREE if len(shared) >= need else Verdict.DISAGREE,
+            statistic=statistic,
         )
     ]
-    matched = [n for n, t in zip(ours.names, ours.in_task_specific, strict=True) if t]
+
+    def matched(ranking: RelevanceTable) -> list[str]:
+        top = ranking.top(m)
+        return [n for n, t in zip(top.names, top.in_task_specific, strict=True) if t]
+
+    found = matched(judged)
+    other = "" if above is None else f"; raw MI: {', '.join(matched(table)) or 'none'}"
+    marked = int(np.count_nonzero(judged.in_task_specific))
     claims.append(
         Claim(
             "relevance",
@@ -333,23 +357,35 @@ def relevance_claims(task: str, table: RelevanceTable | None) -> list[Claim]:
             f"some of the most relevant SDBC features of {title} match the "
             "task-specific characterisation",
             ", ".join(f.label or f.name for f in paper if f.in_task_specific),
-            f"in our top {m}: {', '.join(matched) or 'none'}",
+            f"in our top {m} by {basis}: {', '.join(found) or 'none'}{other}; a "
+            "random ranking passes with probability "
+            f"{chance_pass_rate(d, marked, m, 1):.2g} ({marked} of {d} dimensions "
+            "are in the task-specific characterisation)",
             None,
-            Verdict.AGREE if matched else Verdict.DISAGREE,
+            Verdict.AGREE if found else Verdict.DISAGREE,
+            statistic=statistic,
         )
     )
-    informative = ours.mean > 0
-    if table.runs > 1 and informative.any():
-        cv = float(np.median(ours.sd[informative] / ours.mean[informative]))
+    top = judged.top(m)
+    informative = top.mean > 0
+    if judged.runs > 1 and informative.any():
+        cv = float(np.median(top.sd[informative] / top.mean[informative]))
+        raw_top = table.top(m)
+        raw_cv = float(
+            np.median(raw_top.sd[raw_top.mean > 0] / raw_top.mean[raw_top.mean > 0])
+        )
+        other = "" if above is None else f"; on raw MI {_fmt(raw_cv)}"
         claims.append(
             Claim(
                 "relevance",
                 task,
                 f"feature relevance is consistent across runs in {title} (small SD)",
                 "SD / mean 0.01-0.11",
-                f"median SD / mean of our top {m}: {_fmt(cv)} over {table.runs} runs",
+                f"median SD / mean of our top {m} by {basis}: {_fmt(cv)} over "
+                f"{judged.runs} runs{other}",
                 None,
                 Verdict.AGREE if cv < CONSISTENT_CV else Verdict.DISAGREE,
+                statistic=statistic,
             )
         )
     return claims

@@ -28,8 +28,14 @@ from sdbc_evolution.study.claims import (
     Verdict,
     totals,
 )
+from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.findings import Analysis, TaskAnalysis
-from sdbc_evolution.study.paper import is_paper_task, paper_generations, task_title
+from sdbc_evolution.study.paper import (
+    deceptive_optimum,
+    is_paper_task,
+    paper_generations,
+    task_title,
+)
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS
 from sdbc_evolution.study.quality import PairTest
@@ -377,6 +383,29 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         )
     if notes:
         lines += ["The paper's other listed features: " + "; ".join(notes) + ".", ""]
+    above = ta.relevance_above_chance
+    if above is not None:
+        lines += [
+            f"Ranked by MI above chance (each run's MI minus its own chance level, "
+            f"then mean and SD over runs, bits): the ranking the relevance claims "
+            f"are judged on. The {n} most relevant:",
+            "",
+        ]
+        best = above.top(n)
+        lines += markdown_table(
+            ["#", "feature", "mean above chance", "SD", "raw rank", "in TS char."],
+            [
+                [
+                    str(i + 1),
+                    name,
+                    f"{best.mean[i]:.2f}",
+                    _f(best.sd[i], 2),
+                    f"#{table.rank_of(name)}",
+                    "yes" if best.in_task_specific[i] else "",
+                ]
+                for i, name in enumerate(best.names)
+            ],
+        )
     return lines
 
 
@@ -435,8 +464,12 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         f"runs; colour: {s.fitness_percentile:g}th fitness percentile of those "
         f"individuals; red rings: the high-fitness region (the "
         f"{100 * s.high_fitness_units:g} % of occupied units with the highest "
-        "percentile over all treatments). Quantisation error "
-        f"{maps.quantisation_error:.2f} (z units).",
+        "percentile over all treatments"
+        + _region_floor(ta.task, maps)
+        + "). Quantisation error "
+        f"{maps.quantisation_error:.2f} (z units). The shares depend on the SOM's "
+        f"seed ({s.seed}) and grid; a digest holds one map, so their sensitivity "
+        "to either is untested here.",
         "",
     ]
     rows = []
@@ -462,6 +495,18 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         rows,
     )
     return lines
+
+
+def _region_floor(task: str, maps: ExplorationMaps) -> str:
+    floor = deceptive_optimum(task)
+    if floor is None:
+        return ""
+    region = maps.pooled_percentile[maps.region]
+    start = f"; it starts at {region.min():.4g}" if region.size else "; no unit is"
+    return (
+        f", and only those above the task's deceptive optimum {floor:.4g}, which a "
+        f"team that never charges reaches{start}"
+    )
 
 
 def _sd(x: np.ndarray) -> float:
