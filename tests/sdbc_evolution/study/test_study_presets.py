@@ -163,3 +163,33 @@ def test_the_population_200_preset_tests_ns_sd_plus_on_predator_prey() -> None:
         ("ns-sd+", "ns-sd", "not_below"),
         ("ns-sd+chance", "ns-sd", "not_below"),
     ]
+
+
+def test_new_studies_share_no_run_seed_with_the_committed_ones(tmp_path: Path) -> None:
+    """The studies of issue 35 are independent of the earlier ones: none of their
+    run seeds (nor champion seeds) is a run seed of a committed study's preset."""
+    from sdbc_evolution.study.plan import study_plan
+
+    configs = Path(__file__).resolve().parents[3] / "configs" / "study"
+    earlier = ("local", "local_kinematic", "local_new_tasks", "pp_pop200")
+    old = {
+        s.config.seed
+        for name in earlier
+        for s in study_plan(load_preset_file(configs / f"{name}.yaml"), tmp_path)
+    }
+    for name in ("paper_runs_kinematic", "pp_pop50_control"):
+        preset = load_preset_file(configs / f"{name}.yaml")
+        assert preset.champion_trials >= 50
+        plan = study_plan(preset, tmp_path)
+        seeds = {s.config.seed for s in plan}
+        assert len(seeds) == len(plan) and not seeds & old, name
+        champions = {seed for s in plan for seed in s.champion_seeds}
+        assert len(champions) == len(plan) * preset.champion_trials
+        assert not champions & (old | seeds), name
+    preset = load_preset_file(configs / "paper_runs_kinematic.yaml")
+    assert preset.runs == 20 and set(preset.tasks) == {
+        "gate_escape",
+        "resource_sharing",
+        "predator_prey",
+    }
+    assert preset.experiment["evaluation"]["physics"] == "kinematic"

@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from sdbc_evolution.ga.treatments import PAPER_TREATMENTS
 from sdbc_evolution.study.claims import (
     Verdict,
     above,
+    find_test,
     no_difference,
     not_below,
     quality_claims,
+    totals,
 )
 from sdbc_evolution.study.cost import TaskCost, projected_hours
 from sdbc_evolution.study.exploration import (
@@ -20,7 +24,12 @@ from sdbc_evolution.study.exploration import (
     high_fitness_region,
 )
 from sdbc_evolution.study.presets import StudyPreset
-from sdbc_evolution.study.quality import mann_whitney, pairwise_tests
+from sdbc_evolution.study.quality import (
+    holm,
+    mann_whitney,
+    pairwise_tests,
+    vargha_delaney,
+)
 
 FIT, TS, SD, PLUS = PAPER_TREATMENTS
 
@@ -54,11 +63,77 @@ def test_verdict_rules() -> None:
     assert above(significant_up) is Verdict.AGREE
     assert above(significant_down) is Verdict.DISAGREE
     assert above(unclear) is Verdict.INCONCLUSIVE
-    assert no_difference(unclear) is Verdict.AGREE
+    # Not significant is not agreement: 10 runs a side leave A's interval wide.
+    assert no_difference(unclear) is Verdict.INCONCLUSIVE
     assert no_difference(significant_up) is Verdict.DISAGREE
     assert not_below(significant_up) is Verdict.AGREE
-    assert not_below(unclear) is Verdict.AGREE
+    assert not_below(unclear) is Verdict.INCONCLUSIVE
     assert not_below(significant_down) is Verdict.DISAGREE
+
+
+def test_no_difference_needs_a_narrow_interval_inside_the_margin() -> None:
+    """Constructed samples: the same centre, A = 0.5 exactly; with 8 runs a side
+    the interval is wide and the rule cannot tell, with 400 interleaved runs a
+    side it lies inside (0.36, 0.64) and the rule agrees."""
+    few = np.arange(8.0)
+    wide = mann_whitney("t", SD, PLUS, few, few + 0.5)
+    assert wide.p > 0.05 and wide.effect_low < 0.36 and wide.effect_high > 0.64
+    assert no_difference(wide) is Verdict.INCONCLUSIVE
+    assert not_below(wide) is Verdict.INCONCLUSIVE
+    many = np.arange(400.0)
+    narrow = mann_whitney("t", SD, PLUS, many[::2], many[1::2])
+    assert narrow.effect == pytest.approx(0.4975)
+    assert 0.36 < narrow.effect_low < narrow.effect < narrow.effect_high < 0.64
+    assert no_difference(narrow) is Verdict.AGREE
+    assert not_below(narrow) is Verdict.AGREE
+    # Turned round, the interval is mirrored.
+    turned = find_test([narrow], PLUS, SD)
+    assert turned is not None
+    assert turned.effect_low == pytest.approx(1 - narrow.effect_high)
+    assert turned.effect_high == pytest.approx(1 - narrow.effect_low)
+
+
+def test_effect_interval_is_seeded_and_covers_the_effect() -> None:
+    rng = np.random.default_rng(3)
+    x, y = rng.normal(1.0, 1.0, 12), rng.normal(0.0, 1.0, 12)
+    first = mann_whitney("t", SD, PLUS, x, y)
+    again = mann_whitney("t", SD, PLUS, x, y)
+    assert (first.effect_low, first.effect_high) == (
+        again.effect_low,
+        again.effect_high,
+    )
+    assert first.effect_low < first.effect < first.effect_high
+    assert first.effect == pytest.approx(float(vargha_delaney(x, y)))
+    separated = mann_whitney("t", SD, PLUS, np.arange(5.0) + 10, np.arange(5.0))
+    assert (separated.effect_low, separated.effect_high) == (1.0, 1.0)
+
+
+def test_holm_adjusts_within_a_family() -> None:
+    base = mann_whitney("t", SD, PLUS, np.arange(5.0), np.arange(5.0))
+    family = [dataclasses.replace(base, p=p) for p in (0.04, 0.01, 0.03, 0.5)]
+    # Sorted 0.01, 0.03, 0.04, 0.5: x4, x3 (0.09), x2 (0.08 -> stays 0.09), x1.
+    assert [t.p_holm for t in holm(family)] == pytest.approx([0.09, 0.04, 0.09, 0.5])
+    assert [t.adjusted_p for t in holm(family)][1] == pytest.approx(0.04)
+    tests = pairwise_tests("t", {t: np.arange(3.0) for t in PAPER_TREATMENTS})
+    assert all(t.p_holm is not None for t in tests)
+
+
+def test_claims_on_one_test_count_once_in_the_totals() -> None:
+    rng = np.random.default_rng(1)
+    bests = {
+        FIT: rng.uniform(0.0, 0.1, 10),
+        TS: rng.uniform(0.9, 1.0, 10),
+        SD: rng.uniform(0.7, 0.8, 10),
+        PLUS: rng.uniform(0.5, 0.6, 10),
+    }
+    claims = quality_claims("predator_prey", pairwise_tests("predator_prey", bests))
+    shared = [c for c in claims if "NS-SD+" in c.statement and "NS-SD " in c.statement]
+    # NS-SD+ below NS-SD: 'no difference' and 'not below' both disagree, one test.
+    assert [c.verdict for c in shared] == [Verdict.DISAGREE, Verdict.DISAGREE]
+    assert shared[0].test_key == shared[1].test_key
+    counts = totals(claims)
+    assert sum(counts.values()) == len(claims) - 1
+    assert counts[Verdict.DISAGREE] == 1
 
 
 def test_quality_claims_follow_the_paper_per_task() -> None:

@@ -13,16 +13,20 @@ before, with the same tables and figures to the byte. It writes::
       figures/bests_<task>.png       boxplots of each run's best
       figures/exploration_<task>.png SOM exploration maps
       tables/curves_<task>.csv       generation, per treatment mean, sd, n
-      tables/bests_<task>.csv        treatment, run, best
-      tables/mann_whitney_<task>.csv pairwise tests
+      tables/bests_<task>.csv        treatment, run, best, last, statistic
+      tables/mann_whitney_<task>.csv pairwise tests (A with its 95 % interval,
+                                     raw and Holm-adjusted p)
       tables/relevance_<task>.csv    MI of every SDBC dimension (NS-SD+ runs)
+      tables/relevance_above_chance_<task>.csv  the same, MI above its chance
+                                     level (each run's MI minus its own), ranked
       tables/relevance_<task>_<treatment>.csv   the same for any other weighting
                                      treatment (its measure's units)
       tables/exploration_<task>.csv  per run: uniformity, coverage, high-fitness share
       tables/exploration_<task>.npz  per-run shares, mean shares, percentiles, region
       tables/cost.csv                measured rates per task
       tables/projection.csv          the paper preset's wall time on W workers
-      tables/claims.csv              every claim with our p-value and verdict
+      tables/claims.csv              every claim: raw and Holm p, A and its
+                                     interval, the statistic used, verdict
       tables/predictions.csv         the preset's own predictions, judged (if any)
       tables/problems.csv            runs left out, and why
 """
@@ -62,14 +66,22 @@ from sdbc_evolution.study.digest import (
 from sdbc_evolution.study.figures import plot_bests, plot_curves, plot_exploration
 from sdbc_evolution.study.findings import Analysis, AnalysisSettings, TaskAnalysis
 from sdbc_evolution.study.quality import (
+    PairTest,
     best_curves,
     pairwise_tests,
+    run_best,
     run_bests,
+    run_last,
+    run_lasts,
+    run_statistic,
+    task_statistic,
 )
 from sdbc_evolution.study.reduce import reduce_study
 from sdbc_evolution.study.relevance import (
+    ABOVE_CHANCE,
     PAPER_WEIGHTED,
     RelevanceTable,
+    above_chance_table,
     other_relevance_tables,
     relevance_table,
 )
@@ -96,13 +108,20 @@ def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
 
 
 def _write_relevance(path: Path, table: RelevanceTable) -> Path:
+    unit = (
+        "mi_above_chance_bits"
+        if table.measure == ABOVE_CHANCE
+        else "mi_bits"
+        if table.treatment == PAPER_WEIGHTED
+        else "relevance"
+    )
     return _write_csv(
         path,
         [
             "rank",
             "feature",
-            "mean_mi_bits" if table.treatment == PAPER_WEIGHTED else "mean_relevance",
-            "sd_mi_bits" if table.treatment == PAPER_WEIGHTED else "sd_relevance",
+            f"mean_{unit}",
+            f"sd_{unit}",
             "runs",
             "in_task_specific",
             "chance_mi_bits",
@@ -140,17 +159,19 @@ def analyse_task(
     _write_csv(tables / f"curves_{task}.csv", header, rows)
 
     bests = run_bests(digest)
+    lasts = run_lasts(digest)
     best_runs = {t: tuple(r.name for r in digest.of(t)) for t in bests}
     _write_csv(
         tables / f"bests_{task}.csv",
-        ["treatment", "run", "best"],
+        ["treatment", "run", "best", "last", "statistic"],
         [
-            [t, name, value]
+            [t, run.name, run_best(run), run_last(run), run_statistic(run)]
             for t in bests
-            for name, value in zip(best_runs[t], bests[t], strict=True)
+            for run in digest.of(t)
         ],
     )
     tests = pairwise_tests(task, bests)
+    last_tests = pairwise_tests(task, lasts)
     _write_csv(
         tables / f"mann_whitney_{task}.csv",
         [
@@ -164,7 +185,10 @@ def analyse_task(
             "mean_b",
             "U",
             "A",
+            "A_low",
+            "A_high",
             "p",
+            "p_holm",
         ],
         [
             [
@@ -178,7 +202,10 @@ def analyse_task(
                 s.mean_b,
                 s.u,
                 s.effect,
+                s.effect_low,
+                s.effect_high,
                 s.p,
+                s.p_holm,
             ]
             for s in tests
         ],
@@ -187,6 +214,9 @@ def analyse_task(
     relevance = relevance_table(digest)
     if relevance is not None:
         _write_relevance(tables / f"relevance_{task}.csv", relevance)
+    above = above_chance_table(digest)
+    if above is not None:
+        _write_relevance(tables / f"relevance_above_chance_{task}.csv", above)
     other_relevance = other_relevance_tables(digest)
     for treatment, table in other_relevance.items():
         name = f"relevance_{task}_{treatment_directory(treatment)}.csv"
@@ -238,7 +268,10 @@ def analyse_task(
         bests=bests,
         best_runs=best_runs,
         tests=tests,
+        statistic=task_statistic(digest),
+        last_tests=last_tests,
         relevance=relevance,
+        relevance_above_chance=above,
         other_relevance=other_relevance,
         maps=maps,
         cost=task_cost(digest),
@@ -321,6 +354,17 @@ def analyse_parts(
     return analyse_digest(digest, out, settings, command)
 
 
+TEST_COLUMNS = ("p_holm", "A", "A_low", "A_high")
+"""A test's columns in the claims and predictions tables beside its raw p."""
+
+
+def _test_cells(test: PairTest | None) -> list[Any]:
+    if test is None:
+        return ["", "", "", ""]
+    holm = "" if test.p_holm is None else test.p_holm
+    return [holm, test.effect, test.effect_low, test.effect_high]
+
+
 def analyse_digest(
     digest: StudyDigest,
     out: Path,
@@ -339,9 +383,9 @@ def analyse_digest(
     tasks = [analyse_task(t, settings, out) for t in digest.task_digests]
     claims: list[Claim] = []
     for ta in tasks:
-        claims += quality_claims(ta.task, ta.tests, settings.alpha)
+        claims += quality_claims(ta.task, ta.tests, settings.alpha, ta.statistic)
     for ta in tasks:
-        claims += relevance_claims(ta.task, ta.relevance)
+        claims += relevance_claims(ta.task, ta.relevance, ta.relevance_above_chance)
     for ta in tasks:
         claims += exploration_claims(ta.maps, settings.alpha)
     predicted = _judge_predictions(digest, tasks, settings.alpha)
@@ -349,7 +393,17 @@ def analyse_digest(
     if predicted:
         _write_csv(
             tables / "predictions.csv",
-            ["task", "prediction", "a", "b", "rule", "evidence", "p", "outcome"],
+            [
+                "task",
+                "prediction",
+                "a",
+                "b",
+                "rule",
+                "evidence",
+                "p",
+                *TEST_COLUMNS,
+                "outcome",
+            ],
             [
                 [
                     r.task,
@@ -359,6 +413,7 @@ def analyse_digest(
                     r.prediction.rule,
                     r.evidence,
                     r.p,
+                    *_test_cells(r.test),
                     r.outcome,
                 ]
                 for r in predicted
@@ -366,7 +421,17 @@ def analyse_digest(
         )
     _write_csv(
         tables / "claims.csv",
-        ["topic", "task", "claim", "paper", "ours", "p", "verdict"],
+        [
+            "topic",
+            "task",
+            "claim",
+            "paper",
+            "ours",
+            "p",
+            *TEST_COLUMNS,
+            "statistic",
+            "verdict",
+        ],
         [
             [
                 c.topic,
@@ -375,6 +440,8 @@ def analyse_digest(
                 c.paper,
                 c.ours,
                 "" if c.p is None else c.p,
+                *_test_cells(c.test),
+                c.statistic,
                 c.verdict.value,
             ]
             for c in claims

@@ -2,21 +2,30 @@
 
 Every claim the paper makes in its results (section "Results and Analysis";
 docs/reference-setup.md, "Analysis the paper reports") is one :class:`Claim`, judged
-with the same test:
+on a two-sided Mann-Whitney test (:mod:`.quality`) whose p is **Holm-adjusted
+within its family** (a task's fitness tests, every pair of its treatments; a task's
+exploration tests), with Vargha and Delaney's A and its 95 % bootstrap interval:
 
 - **A above B, significant** (e.g. "every NS variant beats Fit, p < 0.05"): agree
-  when our two-sided Mann-Whitney p < alpha and A beats B more often than not
-  (effect A = U / (n_a n_b) > 0.5); disagree when p < alpha the other way;
-  inconclusive when p >= alpha (our runs cannot tell; with fewer runs than the
-  paper's 20 a real difference may not show);
+  when the adjusted p < alpha and A > 0.5; disagree when the adjusted p < alpha the
+  other way; inconclusive otherwise (our runs cannot tell);
 - **no significant difference** ("NS-SD and NS-SD+ differ only in resource
-  sharing"): agree when p >= alpha, disagree when p < alpha;
-- **A not below B** ("weighting never harms"): disagree only when B is significantly
-  above A;
+  sharing"): agree only when A's interval lies inside :data:`EQUIVALENCE_MARGIN`
+  (an equivalence test: the runs show the treatments close); disagree when the
+  adjusted p < alpha; otherwise inconclusive: a p above alpha alone is absence of
+  evidence, which few runs give all too easily;
+- **A not below B** ("weighting never harms"): agree only when the lower end of
+  A's interval is above the margin's lower bound (non-inferiority); disagree when
+  the adjusted p < alpha and A < 0.5; otherwise inconclusive;
 - **relevance**: the paper's most relevant features are among ours (agree when at
-  least half of its listed features are in our top list of the same length), and
-  relevance is consistent over runs (agree when the median coefficient of variation
-  SD / mean of our top features is under :data:`CONSISTENT_CV`).
+  least half of its listed features are in our top list of the same length), some
+  of our top features are in the task-specific characterisation (reported with
+  the rule's chance pass rate), and relevance is consistent over runs (agree when
+  the median coefficient of variation SD / mean of our top features is under
+  :data:`CONSISTENT_CV`); all three judged on the ranking by MI above its chance
+  level where the digest holds it (:mod:`.relevance`), the raw ranking beside.
+
+The totals count tests, not claims, where claims share one (:func:`totals`).
 
 The claims apply to the paper's three tasks only (:mod:`sdbc_evolution.study.paper`):
 a study of any other task gets no claim.
@@ -32,6 +41,7 @@ preset) are judged by the same three rules, apart from the paper's claims:
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import Enum
@@ -42,11 +52,15 @@ from sdbc_evolution.ga.treatments import label
 from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.paper import is_paper_task, task_title
 from sdbc_evolution.study.predictions import Prediction
-from sdbc_evolution.study.quality import PairTest, mann_whitney
-from sdbc_evolution.study.relevance import RelevanceTable
+from sdbc_evolution.study.quality import PairTest, holm, mann_whitney
+from sdbc_evolution.study.relevance import RelevanceTable, chance_pass_rate
 
 ALPHA = 0.05
 """Significance level of every claim (the paper's)."""
+EQUIVALENCE_MARGIN = (0.36, 0.64)
+"""The band of A taken as "no real difference": Vargha and Delaney's (2000)
+"small" effect bounds. ``no_difference`` needs A's whole interval inside it,
+``not_below`` its lower end above the lower bound; the one place it is declared."""
 CONSISTENT_CV = 0.2
 """Median SD / mean of the top features under which relevance is "consistent"
 (the paper's table: 0.01 to 0.11)."""
@@ -119,8 +133,11 @@ class Claim:
         statement: The claim, as the paper makes it.
         paper: The paper's evidence.
         ours: Our evidence.
-        p: Our p-value (None where the claim has no test).
+        p: Our raw p-value (None where the claim has no test).
         verdict: Agree, disagree or inconclusive.
+        test: The test it rests on (None where it has none): its Holm p, A
+            and A's interval.
+        statistic: Which statistic of a run the test compares.
     """
 
     topic: str
@@ -130,38 +147,56 @@ class Claim:
     ours: str
     p: float | None
     verdict: Verdict
+    test: PairTest | None = None
+    statistic: str = ""
+
+    @property
+    def test_key(self) -> tuple[str, ...] | None:
+        """The test's identity, the same for two claims on one test (whichever
+        way round they read it)."""
+        if self.test is None:
+            return None
+        pair = sorted((self.test.a, self.test.b))
+        return (self.topic, self.task, self.statistic, *pair)
 
 
 def _fmt(x: float) -> str:
     return f"{x:.3g}" if math.isfinite(x) else "n/a"
 
 
-def _p(p: float) -> str:
-    return f"p = {p:.3g}" if p >= 1e-3 else "p < 0.001"
-
-
 def above(test: PairTest, alpha: float = ALPHA) -> Verdict:
     """Verdict on "test.a above test.b, significantly"."""
-    if test.p >= alpha:
+    if test.adjusted_p >= alpha:
         return Verdict.INCONCLUSIVE
     return Verdict.AGREE if test.effect > 0.5 else Verdict.DISAGREE
 
 
 def no_difference(test: PairTest, alpha: float = ALPHA) -> Verdict:
-    return Verdict.AGREE if test.p >= alpha else Verdict.DISAGREE
+    """Verdict on "test.a and test.b do not differ" (an equivalence test)."""
+    low, high = EQUIVALENCE_MARGIN
+    if low < test.effect_low and test.effect_high < high:
+        return Verdict.AGREE
+    if test.adjusted_p < alpha:
+        return Verdict.DISAGREE
+    return Verdict.INCONCLUSIVE
 
 
 def not_below(test: PairTest, alpha: float = ALPHA) -> Verdict:
-    """Verdict on "test.a is not below test.b"."""
-    return Verdict.DISAGREE if test.p < alpha and test.effect < 0.5 else Verdict.AGREE
+    """Verdict on "test.a is not below test.b" (non-inferiority)."""
+    if test.effect_low > EQUIVALENCE_MARGIN[0]:
+        return Verdict.AGREE
+    if test.adjusted_p < alpha and test.effect < 0.5:
+        return Verdict.DISAGREE
+    return Verdict.INCONCLUSIVE
 
 
 def evidence(test: PairTest, what: str = "best fitness") -> str:
-    """A test in words: both medians, run counts, effect and p-value."""
+    """A test in words: both medians, run counts, and A with its interval (the
+    tables give the p-values in columns of their own)."""
     return (
         f"median {what} {label(test.a)} {_fmt(test.median_a)} vs {label(test.b)} "
         f"{_fmt(test.median_b)} (n = {test.n_a}, {test.n_b}); "
-        f"A = {test.effect:.2f}, {_p(test.p)}"
+        f"A = {test.effect:.2f} [{test.effect_low:.2f}, {test.effect_high:.2f}]"
     )
 
 
@@ -171,24 +206,26 @@ def find_test(tests: list[PairTest], a: str, b: str) -> PairTest | None:
         if (t.a, t.b) == (a, b):
             return t
         if (t.a, t.b) == (b, a):
-            return PairTest(
-                t.task,
-                a,
-                b,
-                t.n_b,
-                t.n_a,
-                t.median_b,
-                t.median_a,
-                t.mean_b,
-                t.mean_a,
-                t.n_a * t.n_b - t.u,
-                t.p,
-            )
+            return t.turned()
     return None
 
 
+def totals(claims: Sequence[Claim]) -> Counter[Verdict]:
+    """Verdicts counted once per test: two claims on one test with the same
+    verdict count once (one observation), with different verdicts once each;
+    claims with no test count one each."""
+    seen: set[tuple[object, ...]] = set()
+    counts: Counter[Verdict] = Counter()
+    for i, claim in enumerate(claims):
+        key = (claim.test_key or ("claim", i), claim.verdict)
+        if key not in seen:
+            seen.add(key)
+            counts[claim.verdict] += 1
+    return counts
+
+
 def quality_claims(
-    task: str, tests: list[PairTest], alpha: float = ALPHA
+    task: str, tests: list[PairTest], alpha: float = ALPHA, statistic: str = ""
 ) -> list[Claim]:
     """The paper's claims on the quality of solutions that concern ``task`` (none
     for a task the paper did not run)."""
@@ -214,6 +251,8 @@ def quality_claims(
                 evidence(test),
                 test.p,
                 rule(test, alpha),
+                test,
+                statistic,
             )
         )
 
@@ -260,33 +299,57 @@ def quality_claims(
     return claims
 
 
-def relevance_claims(task: str, table: RelevanceTable | None) -> list[Claim]:
-    """The paper's claims on feature relevance for ``task``."""
+def relevance_claims(
+    task: str, table: RelevanceTable | None, above: RelevanceTable | None = None
+) -> list[Claim]:
+    """The paper's claims on feature relevance for ``task``, judged on the ranking
+    by MI above chance (``above``) where there is one, else on the raw ranking
+    (``table``); the other ranking's result and each rule's chance pass rate (a
+    random ranking's, :func:`.relevance.chance_pass_rate`) are in the evidence."""
     paper = PAPER_RELEVANCE.get(task)
     if table is None or paper is None:
         return []
+    judged = above if above is not None else table
+    basis = "MI above chance" if above is not None else "raw MI (no chance level here)"
+    statistic = f"NS-SD+ ranking by {basis}"
     title = task_title(task)
     m = len(paper)
-    ours = table.top(m)
-    shared = [f.name for f in paper if f.name in ours.names]
-    overlap = Verdict.AGREE if len(shared) >= math.ceil(m / 2) else Verdict.DISAGREE
-    top = paper[0]
-    rank = table.rank_of(top.name)
+    d = len(judged.names)
+    need = math.ceil(m / 2)
+
+    def overlap(ranking: RelevanceTable) -> list[str]:
+        top = ranking.top(m).names
+        return [f.name for f in paper if f.name in top]
+
+    shared = overlap(judged)
+    listed = sum(f.name in judged.names for f in paper)
+    first = paper[0]
+    rank = judged.rank_of(first.name)
+    other = "" if above is None else f"; raw MI: {len(overlap(table))} of {m}"
     claims = [
         Claim(
             "relevance",
             task,
             f"the most relevant features of {title} are those of the paper's table",
             ", ".join(f.label or f.name for f in paper),
-            f"{len(shared)} of the paper's {m} are in our top {m} "
-            f"({', '.join(shared) or 'none'}); the paper's first, {top.name}, is our "
-            f"#{rank} of {len(table.names)}; our first: {table.names[0]} "
-            f"({table.mean[0]:.2f} bits)",
+            f"by {basis}: {len(shared)} of the paper's {m} are in our top {m} "
+            f"({', '.join(shared) or 'none'}){other}; the paper's first, "
+            f"{first.name}, is our #{rank} of {d}; our first: {judged.names[0]} "
+            f"({judged.mean[0]:.2f} bits); a random ranking passes with "
+            f"probability {chance_pass_rate(d, listed, m, need):.2g}",
             None,
-            overlap,
+            Verdict.AGREE if len(shared) >= need else Verdict.DISAGREE,
+            statistic=statistic,
         )
     ]
-    matched = [n for n, t in zip(ours.names, ours.in_task_specific, strict=True) if t]
+
+    def matched(ranking: RelevanceTable) -> list[str]:
+        top = ranking.top(m)
+        return [n for n, t in zip(top.names, top.in_task_specific, strict=True) if t]
+
+    found = matched(judged)
+    other = "" if above is None else f"; raw MI: {', '.join(matched(table)) or 'none'}"
+    marked = int(np.count_nonzero(judged.in_task_specific))
     claims.append(
         Claim(
             "relevance",
@@ -294,23 +357,35 @@ def relevance_claims(task: str, table: RelevanceTable | None) -> list[Claim]:
             f"some of the most relevant SDBC features of {title} match the "
             "task-specific characterisation",
             ", ".join(f.label or f.name for f in paper if f.in_task_specific),
-            f"in our top {m}: {', '.join(matched) or 'none'}",
+            f"in our top {m} by {basis}: {', '.join(found) or 'none'}{other}; a "
+            "random ranking passes with probability "
+            f"{chance_pass_rate(d, marked, m, 1):.2g} ({marked} of {d} dimensions "
+            "are in the task-specific characterisation)",
             None,
-            Verdict.AGREE if matched else Verdict.DISAGREE,
+            Verdict.AGREE if found else Verdict.DISAGREE,
+            statistic=statistic,
         )
     )
-    informative = ours.mean > 0
-    if table.runs > 1 and informative.any():
-        cv = float(np.median(ours.sd[informative] / ours.mean[informative]))
+    top = judged.top(m)
+    informative = top.mean > 0
+    if judged.runs > 1 and informative.any():
+        cv = float(np.median(top.sd[informative] / top.mean[informative]))
+        raw_top = table.top(m)
+        raw_cv = float(
+            np.median(raw_top.sd[raw_top.mean > 0] / raw_top.mean[raw_top.mean > 0])
+        )
+        other = "" if above is None else f"; on raw MI {_fmt(raw_cv)}"
         claims.append(
             Claim(
                 "relevance",
                 task,
                 f"feature relevance is consistent across runs in {title} (small SD)",
                 "SD / mean 0.01-0.11",
-                f"median SD / mean of our top {m}: {_fmt(cv)} over {table.runs} runs",
+                f"median SD / mean of our top {m} by {basis}: {_fmt(cv)} over "
+                f"{judged.runs} runs{other}",
                 None,
                 Verdict.AGREE if cv < CONSISTENT_CV else Verdict.DISAGREE,
+                statistic=statistic,
             )
         )
     return claims
@@ -325,25 +400,15 @@ def _metric_test(maps: ExplorationMaps, metric: str, a: str, b: str) -> PairTest
 
 def exploration_claims(maps: ExplorationMaps, alpha: float = ALPHA) -> list[Claim]:
     """The paper's reading of its exploration maps, tested on ``maps.task`` (none
-    for a task the paper did not run)."""
+    for a task the paper did not run); the tests are one family for Holm."""
     if not is_paper_task(maps.task):
         return []
     title = task_title(maps.task)
-    claims = []
+    planned: list[tuple[str, PairTest, str]] = []
 
     def add(statement: str, test: PairTest | None, what: str) -> None:
         if test is not None:
-            claims.append(
-                Claim(
-                    "exploration",
-                    maps.task,
-                    statement,
-                    "figure 3 (resource sharing; 'similar' in the others)",
-                    evidence(test, what),
-                    test.p,
-                    above(test, alpha),
-                )
-            )
+            planned.append((statement, test, what))
 
     for variant in (NS_TS, NS_SD, NS_SD_PLUS):
         add(
@@ -367,7 +432,21 @@ def exploration_claims(maps: ExplorationMaps, alpha: float = ALPHA) -> list[Clai
         _metric_test(maps, "region_share", NS_TS, NS_SD_PLUS),
         "high-fitness share",
     )
-    return claims
+    adjusted = holm([test for _, test, _ in planned])
+    return [
+        Claim(
+            "exploration",
+            maps.task,
+            statement,
+            "figure 3 (resource sharing; 'similar' in the others)",
+            evidence(test, what),
+            test.p,
+            above(test, alpha),
+            test,
+            f"per-run {what} of the SOM map",
+        )
+        for (statement, _, what), test in zip(planned, adjusted, strict=True)
+    ]
 
 
 RULES: dict[str, Callable[[PairTest, float], Verdict]] = {
@@ -392,8 +471,8 @@ class PredictionResult:
     Attributes:
         prediction: What was predicted.
         task: The task.
-        evidence: Medians, run counts, effect and p-value.
-        p: The test's p-value.
+        evidence: Medians, run counts, effect with its interval, p-values.
+        p: The test's raw p-value.
         effect: A = U / (n_a n_b), the chance that a run of ``a`` beats one of ``b``.
         verdict: Agree (held), disagree (did not hold) or inconclusive.
     """
@@ -404,6 +483,7 @@ class PredictionResult:
     p: float
     effect: float
     verdict: Verdict
+    test: PairTest | None = None
 
     @property
     def outcome(self) -> str:
@@ -433,6 +513,7 @@ def judge_predictions(
                 p=test.p,
                 effect=test.effect,
                 verdict=RULES[prediction.rule](test, alpha),
+                test=test,
             )
         )
     return results

@@ -13,7 +13,11 @@ analyse --from-digest``), byte for byte. Per run:
   SDBC dimension's relevance (weight - delta: for NS-SD+ its MI with fitness)
   averaged over the run's generations, and the MI's chance level from evenly
   spaced generations (:mod:`.relevance`);
-- its individuals per unit of the task's SOM (:mod:`.exploration`).
+- its individuals per unit of the task's SOM (:mod:`.exploration`);
+- where the study re-evaluated champions (:mod:`.champions`), the champion's
+  generation and re-evaluated fitness, the last generation's best re-evaluated,
+  and the trials (a digest of a study without them holds none of these arrays, so
+  it stays the bytes it was).
 
 Per task: the SDBC dimension names, bodies per trial and the longest trial, and the
 SOM's fitness percentile per unit for each treatment and pooled. Per study: the
@@ -50,6 +54,7 @@ from sdbc_evolution.run.config import (
     dump_config,
 )
 from sdbc_evolution.run.results import npz_bytes
+from sdbc_evolution.study.champions import ChampionSummary
 from sdbc_evolution.study.exploration import ExplorationMaps, SomSettings
 from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.rundirs import RunProblem
@@ -83,6 +88,7 @@ class RunDigest:
             MI with fitness, bits); weighting runs only, else None.
         chance: (D,) the MI's chance level, bits (weighting runs only, else
             None).
+        champions: Its champions re-evaluated, or None.
     """
 
     name: str
@@ -96,6 +102,7 @@ class RunDigest:
     workers: np.ndarray
     information: np.ndarray | None = None
     chance: np.ndarray | None = None
+    champions: ChampionSummary | None = None
 
     @property
     def task(self) -> str:
@@ -257,7 +264,53 @@ def task_arrays(digest: TaskDigest) -> dict[str, np.ndarray]:
         "som_sample_count": np.array(maps.sample_count, dtype=np.int64),
         "som_quantisation_error": np.array(maps.quantisation_error, dtype=np.float64),
     }
+    if any(r.champions is not None for r in runs):
+        arrays.update(_champion_arrays(runs))
     return arrays
+
+
+CHAMPION_ARRAYS = {
+    "champion_trials": ("trials", np.int64, 0),
+    "champion_generation": ("generation", np.int64, -1),
+    "champion_fitness": ("fitness", np.float64, np.nan),
+    "champion_mean": ("mean", np.float64, np.nan),
+    "last_fitness": ("last_fitness", np.float64, np.nan),
+    "last_mean": ("last_mean", np.float64, np.nan),
+}
+"""Per-run arrays of re-evaluated champions: field of :class:`ChampionSummary`,
+dtype, and the value of a run without (0 trials)."""
+
+
+def _champion_arrays(runs: tuple[RunDigest, ...]) -> dict[str, np.ndarray]:
+    return {
+        key: np.array(
+            [
+                missing if r.champions is None else getattr(r.champions, name)
+                for r in runs
+            ],
+            dtype=dtype,
+        )
+        for key, (name, dtype, missing) in CHAMPION_ARRAYS.items()
+    }
+
+
+def _read_champions(npz: _Npz, r: int) -> list[ChampionSummary | None]:
+    if "champion_trials" not in npz.arrays:
+        return [None] * r
+    arrays = {
+        key: npz.get(key, "i" if dtype is np.int64 else "f", (r,))
+        for key, (_, dtype, _) in CHAMPION_ARRAYS.items()
+    }
+    found: list[ChampionSummary | None] = []
+    for i in range(r):
+        if int(arrays["champion_trials"][i]) <= 0:
+            found.append(None)
+            continue
+        values = {
+            name: arrays[key][i].item() for key, (name, _, _) in CHAMPION_ARRAYS.items()
+        }
+        found.append(ChampionSummary(**values))
+    return found
 
 
 def _preset_json(preset: PresetSummary) -> dict[str, Any]:
@@ -302,7 +355,11 @@ def write_digest(digest: StudyDigest, directory: str | Path) -> list[Path]:
                         and mi_chance (D,);
                         som_counts (R, U); per treatment som_treatments,
                         som_percentile (K, U); som_pooled_percentile (U,),
-                        som_sample_count, som_quantisation_error
+                        som_sample_count, som_quantisation_error; where any
+                        run re-evaluated its champions, per run (R,):
+                        champion_trials (0: not re-evaluated),
+                        champion_generation, champion_fitness, champion_mean,
+                        last_fitness, last_mean
 
     Files of tasks not in the digest are removed, so the folder is the digest.
     """
@@ -422,6 +479,7 @@ def _read_task(file: Path, task: str, som: SomSettings) -> TaskDigest:
     bodies = int(npz.get("bodies", "i", ()))
     max_steps = int(npz.get("max_steps", "i", ()))
 
+    champions = _read_champions(npz, r)
     offsets = np.concatenate([[0], np.cumsum(lengths)])
     information = dict(zip(mi_runs.tolist(), mi, strict=True))
     chances = dict(zip(mi_runs.tolist(), chance, strict=True))
@@ -447,6 +505,7 @@ def _read_task(file: Path, task: str, som: SomSettings) -> TaskDigest:
                 workers=workers[window].astype(np.float64),
                 information=information.get(i),
                 chance=chances.get(i),
+                champions=champions[i],
             )
         )
     present = _ordered_treatments(runs)

@@ -60,6 +60,12 @@ class TaskAnalysis:
     figures: dict[str, Path]
     other_relevance: dict[str, RelevanceTable] = field(default_factory=dict)
     """Relevance tables of the weighting treatments other than NS-SD+."""
+    relevance_above_chance: RelevanceTable | None = None
+    """NS-SD+'s MI above chance, ranked (the relevance claims' basis)."""
+    statistic: str = ""
+    """Which statistic of a run ``bests`` holds (:func:`.quality.run_statistic`)."""
+    last_tests: list[PairTest] = field(default_factory=list)
+    """The same tests on each run's last best (reported, deciding nothing)."""
 
 
 @dataclass

@@ -14,6 +14,19 @@ PAPER_TASKS: tuple[str, ...] = ("gate_escape", "resource_sharing", "predator_pre
 """The paper's tasks, in its order."""
 
 
+def deceptive_optimum(task: str) -> float | None:
+    """The fitness of ``task``'s deceptive optimum, where the task declares one
+    (resource sharing: ``NO_CHARGE_OPTIMUM``, the best a team that never charges
+    can score); None otherwise. The exploration's high-fitness region starts
+    above it (:mod:`.exploration`): a region at or below it marks the deception,
+    not the solutions."""
+    if task == "resource_sharing":
+        from sdbc_sim.tasks.resource_sharing import NO_CHARGE_OPTIMUM
+
+        return float(NO_CHARGE_OPTIMUM)
+    return None
+
+
 def is_paper_task(task: str) -> bool:
     """Whether the paper ran ``task`` (so that its claims apply)."""
     return task in PAPER_TASKS

@@ -14,7 +14,15 @@ layout of :mod:`sdbc_evolution.run.results`::
 Run seeds are independent streams of the study seed: seed(task, treatment, r) is
 the first 63 bits of ``SeedSequence(study_seed, spawn_key=(crc32(task),
 crc32(treatment), r))``. They depend on names, not on positions, so adding a task or
-a treatment to a preset leaves every other run unchanged.
+a treatment to a preset leaves every other run unchanged. Two studies whose seeds
+differ share no run seed (SeedSequence mixes the study seed into every stream);
+the champions' trial seeds come from a branch of their own
+(:mod:`sdbc_evolution.study.champions`).
+
+A run of a preset with ``champion_trials`` is finished only when its champions'
+re-evaluation is there too (``champion.json``); a run whose generations are done
+and whose re-evaluation is missing, killed halfway or made with other seeds is
+:attr:`RunProgress.REEVALUATE`: the runner re-evaluates it, nothing else.
 """
 
 from __future__ import annotations
@@ -37,6 +45,11 @@ from sdbc_evolution.run.evaluators import TaskInfo
 from sdbc_evolution.run.experiment import task_spec
 from sdbc_evolution.run.lock import RunBusy, RunLock
 from sdbc_evolution.run.results import CONFIG_FILE, ResultsDirectory, RunDamaged
+from sdbc_evolution.study.champions import (
+    ChampionError,
+    champion_seeds,
+    check_champions,
+)
 from sdbc_evolution.study.presets import StudyPreset
 
 STUDY_FILE = "study.yaml"
@@ -76,6 +89,8 @@ class RunSpec:
         index: Run index within (task, treatment), from 0.
         path: The run directory.
         config: The run's resolved configuration.
+        champion_seeds: Trial seeds of its champions' re-evaluation (empty: the
+            preset re-evaluates none).
     """
 
     task: str
@@ -83,6 +98,7 @@ class RunSpec:
     index: int
     path: Path
     config: ExperimentConfig
+    champion_seeds: tuple[int, ...] = ()
 
     @property
     def name(self) -> str:
@@ -126,6 +142,14 @@ def study_plan(
             config=preset.experiment_config(
                 task, treatment, run_seed(preset.seed, task, treatment, index)
             ),
+            champion_seeds=tuple(
+                int(s)
+                for s in champion_seeds(
+                    preset.seed, task, treatment.name, index, preset.champion_trials
+                )
+            )
+            if preset.champion_trials
+            else (),
         )
         for task in chosen
         for index in range(preset.runs)
@@ -180,8 +204,12 @@ class RunProgress(str, Enum):
     """Nothing there yet: the run starts."""
     PARTIAL = "partial"
     """A valid checkpoint before the last generation: the run resumes."""
+    REEVALUATE = "reevaluate"
+    """Every generation done, the champions' re-evaluation the preset asks for
+    missing or unusable: it is done (again)."""
     FINISHED = "finished"
-    """Checkpoint at the last generation: the run is skipped."""
+    """Checkpoint at the last generation (and the champions re-evaluated, if the
+    preset asks for it): the run is skipped."""
     BROKEN = "broken"
     """Results without a usable checkpoint, or damaged outputs the checkpoint
     vouches for: moved aside, the run starts again."""
@@ -237,6 +265,15 @@ def run_status(spec: RunSpec) -> RunStatus:
     except RunDamaged as error:
         return RunStatus(RunProgress.BROKEN, detail=str(error))
     if checkpoint.generation >= spec.generations:
+        if spec.champion_seeds:
+            try:
+                check_champions(
+                    spec.path, np.array(spec.champion_seeds), spec.generations
+                )
+            except (ChampionError, OSError, ValueError, IndexError) as error:
+                return RunStatus(
+                    RunProgress.REEVALUATE, checkpoint.generation, str(error)
+                )
         return RunStatus(RunProgress.FINISHED, checkpoint.generation)
     return RunStatus(RunProgress.PARTIAL, checkpoint.generation)
 

@@ -47,6 +47,7 @@ from sdbc_evolution.run.config import (
     check_task_config,
     config_from_dict,
 )
+from sdbc_evolution.study.champions import MIN_CHAMPION_TRIALS
 from sdbc_evolution.study.paper import PAPER_TASKS
 from sdbc_evolution.study.predictions import Prediction
 
@@ -96,6 +97,10 @@ class StudyPreset:
     experiment: dict[str, Any] = field(default_factory=dict)
     """Settings shared by every run (sections ``ga``, ``novelty``, ``evaluation``,
     ...; an ``sdbc-evolve`` configuration without the keys in :data:`STUDY_KEYS`)."""
+    champion_trials: Annotated[int, Field(ge=0)] = 0
+    """Trials each run's champion and last best are re-evaluated in once the run
+    is done (0: not at all; else at least ``MIN_CHAMPION_TRIALS``; see
+    :mod:`sdbc_evolution.study.champions`)."""
 
     def __post_init__(self) -> None:
         check(len(set(self.tasks)) == len(self.tasks), "tasks", "has duplicates")
@@ -149,6 +154,12 @@ class StudyPreset:
             f"not given for {missing}: a preset that sets its own "
             f"{', '.join(scaled)} must "
             "set each task's generations too (left out, a task takes the paper's)",
+        )
+        check(
+            self.champion_trials == 0 or self.champion_trials >= MIN_CHAMPION_TRIALS,
+            "champion_trials",
+            f"must be 0 (off) or at least {MIN_CHAMPION_TRIALS}, got "
+            f"{self.champion_trials}",
         )
         reserved = sorted(set(self.experiment) & set(STUDY_KEYS))
         check(
@@ -230,6 +241,12 @@ class StudyPreset:
             "generations": {t: self.generations_of(t) for t in self.tasks},
             "task_config": {t: dict(c) for t, c in self.task_config.items()},
             "experiment": to_plain(self.experiment),
+            # Left out when off: the study.yaml of earlier studies stays as it was.
+            **(
+                {"champion_trials": self.champion_trials}
+                if self.champion_trials
+                else {}
+            ),
             **(
                 {"predictions": [to_plain(p) for p in self.predictions]}
                 if self.predictions
@@ -250,6 +267,7 @@ class StudyPreset:
             "population": config.ga.population_size,
             "trials per individual": config.evaluation.trials,
             "re-evaluation trials": config.evaluation.reevaluation_trials,
+            "champion re-evaluation trials": self.champion_trials,
             "generations": {t: self.generations_of(t) for t in self.tasks},
         }
 

@@ -88,6 +88,7 @@ def reduce_run(run: RunData) -> RunDigest:
         workers=workers_per_generation(run),
         information=run_information(run) if weighted else None,
         chance=run_chance_information(run) if weighted else None,
+        champions=run.champions,
     )
 
 

@@ -208,6 +208,66 @@ def relevance_table(
     )
 
 
+ABOVE_CHANCE = "mi above chance"
+"""The measure of :func:`above_chance_table`: each run's MI minus its own chance
+level, bits."""
+
+
+def above_chance_table(
+    task: TaskDigest, treatment: str = PAPER_WEIGHTED
+) -> RelevanceTable | None:
+    """The table of ``treatment``'s MI above its chance level: per run
+    I(F; k) - chance_k (both from the digest), then mean and SD over runs and
+    ranked by the mean. At population 50 the raw plug-in MI is mostly the
+    estimator's bias, the same for every feature with the same number of
+    occupied bins, so this ranking is the one that says what a feature shares
+    with fitness. None where the treatment does not weigh by raw MI."""
+    raw = relevance_table(task, treatment)
+    if raw is None or raw.measure != "mi":
+        return None
+    measured = [
+        r.information - r.chance
+        for r in task.of(treatment)
+        if r.information is not None and r.chance is not None
+    ]
+    above = np.stack(measured)
+    mean = above.mean(axis=0)
+    sd = above.std(axis=0, ddof=1) if len(measured) > 1 else np.full(mean.shape, np.nan)
+    chance = np.stack(
+        [r.chance for r in task.of(treatment) if r.chance is not None]
+    ).mean(axis=0)
+    order = np.argsort(-mean, kind="stable")
+    names = task.sdbc_names
+    matched = task_specific_dimensions(task.task)
+    ordered = tuple(names[i] for i in order)
+    return RelevanceTable(
+        task=task.task,
+        names=ordered,
+        mean=mean[order],
+        sd=sd[order],
+        runs=len(measured),
+        in_task_specific=np.array([n in matched for n in ordered]),
+        chance=chance[order],
+        treatment=treatment,
+        measure=ABOVE_CHANCE,
+    )
+
+
+def chance_pass_rate(dimensions: int, marked: int, top: int, at_least: int) -> float:
+    """The chance that a ranking drawn at random (every order of the
+    ``dimensions`` equally likely) puts at least ``at_least`` of ``marked``
+    dimensions among its first ``top``: the exact permutation probability,
+    hypergeometric."""
+    from math import comb
+
+    total = comb(dimensions, top)
+    hits = sum(
+        comb(marked, j) * comb(dimensions - marked, top - j)
+        for j in range(at_least, min(marked, top) + 1)
+    )
+    return hits / total
+
+
 def other_relevance_tables(task: TaskDigest) -> dict[str, RelevanceTable]:
     """The tables of every weighting treatment but NS-SD+, in the task's
     treatment order."""

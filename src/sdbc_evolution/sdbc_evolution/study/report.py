@@ -22,14 +22,23 @@ from sdbc_sim.tasks.resource_sharing import NO_CHARGE_OPTIMUM
 from sdbc_evolution.ga.treatments import label
 from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.study.claims import (
+    EQUIVALENCE_MARGIN,
     PAPER_RELEVANCE,
     Claim,
     Verdict,
+    totals,
 )
+from sdbc_evolution.study.exploration import ExplorationMaps
 from sdbc_evolution.study.findings import Analysis, TaskAnalysis
-from sdbc_evolution.study.paper import is_paper_task, paper_generations, task_title
+from sdbc_evolution.study.paper import (
+    deceptive_optimum,
+    is_paper_task,
+    paper_generations,
+    task_title,
+)
 from sdbc_evolution.study.plan import STUDY_FILE
 from sdbc_evolution.study.presets import PAPER_RUNS
+from sdbc_evolution.study.quality import PairTest
 from sdbc_evolution.study.relevance import BITS, task_specific_features
 from sdbc_evolution.study.rundirs import MISSING, RunProblem
 
@@ -183,6 +192,12 @@ def _wall_times(analysis: Analysis) -> list[str]:
     return markdown_table(["task", "wall time", "sessions", "how"], rows)
 
 
+def _interval(test: PairTest | None) -> str:
+    if test is None:
+        return ""
+    return f"{test.effect:.2f} [{test.effect_low:.2f}, {test.effect_high:.2f}]"
+
+
 def _claims_table(claims: list[Claim]) -> list[str]:
     rows = [
         [
@@ -191,11 +206,82 @@ def _claims_table(claims: list[Claim]) -> list[str]:
             c.paper,
             c.ours,
             _p(c.p),
+            "" if c.test is None else _p(c.test.p_holm),
+            _interval(c.test),
             f"**{c.verdict.value}**",
         ]
         for i, c in enumerate(claims)
     ]
-    return markdown_table(["#", "claim", "paper", "ours", "our p", "verdict"], rows)
+    return markdown_table(
+        ["#", "claim", "paper", "ours", "our p", "Holm p", "A [95 % CI]", "verdict"],
+        rows,
+    )
+
+
+def _rules_text(alpha: float) -> str:
+    low, high = EQUIVALENCE_MARGIN
+    return (
+        f"Verdicts at alpha = {alpha} on two-sided Mann-Whitney tests whose p is "
+        "Holm-adjusted within each task's family of fitness tests (every pair of "
+        "its treatments) and, apart, of exploration tests; A = U / (n_a n_b) is "
+        "the chance that a run of the first treatment beats one of the second, "
+        "with its 95 % bootstrap interval. *Agree*: a claimed difference is "
+        "significant (Holm) in the paper's direction; a claim of no difference has "
+        f"A's whole interval inside [{low}, {high}] (Vargha and Delaney's 'small' "
+        "bounds); a claim of not below has the interval's lower end above "
+        f"{low}. *Disagree*: significant (Holm) the other way. *Inconclusive*: "
+        "anything else, our runs cannot tell (a p above alpha is not agreement). "
+        "The rules are in `sdbc_evolution/study/claims.py`."
+    )
+
+
+def _totals_line(claims: list[Claim]) -> str:
+    counts = totals(claims)
+    shared = len(claims) - sum(counts.values())
+    line = (
+        f"Of {len(claims)} claims: {counts[Verdict.AGREE]} agree, "
+        f"{counts[Verdict.DISAGREE]} disagree, {counts[Verdict.INCONCLUSIVE]} "
+        "inconclusive"
+    )
+    if shared:
+        line += (
+            f", counting a test once where two claims rest on it with one verdict "
+            f"({shared} such {'claim' if shared == 1 else 'claims'} not counted "
+            "again)"
+        )
+    return line + "."
+
+
+def _tests_table(tests: list[PairTest]) -> list[str]:
+    return markdown_table(
+        [
+            "a",
+            "b",
+            "median a",
+            "median b",
+            "mean a",
+            "mean b",
+            "U",
+            "A [95 % CI]",
+            "p",
+            "Holm p",
+        ],
+        [
+            [
+                label(t.a),
+                label(t.b),
+                _f(t.median_a),
+                _f(t.median_b),
+                _f(t.mean_a),
+                _f(t.mean_b),
+                _f(t.u),
+                _interval(t),
+                _p(t.p),
+                _p(t.p_holm),
+            ]
+            for t in tests
+        ],
+    )
 
 
 def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
@@ -207,31 +293,24 @@ def _task_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         f"![best of each run]({_rel(ta.figures['bests'], out)})",
         "",
         "Left: the best individual of each generation re-evaluated in fresh trials, "
-        "mean over runs, band +-1 standard error. Right: each run's best (the highest "
-        "point of its curve); boxes at the quartiles, whiskers at 1.5 IQR, dots are "
-        "runs.",
+        "mean over runs, band +-1 standard error. Right: each run's best; boxes at "
+        "the quartiles, whiskers at 1.5 IQR, dots are runs.",
+        "",
+        f"A run's best, which the tests and the fitness verdicts use: {ta.statistic}.",
         "",
         "Mann-Whitney U (two-sided) on each run's best; A = U / (n_a n_b) is the "
-        "chance that a run of the first treatment beats one of the second.",
+        "chance that a run of the first treatment beats one of the second, with its "
+        "95 % bootstrap interval; Holm p is adjusted over the task's tests below.",
         "",
     ]
-    lines += markdown_table(
-        ["a", "b", "median a", "median b", "mean a", "mean b", "U", "A", "p"],
-        [
-            [
-                label(t.a),
-                label(t.b),
-                _f(t.median_a),
-                _f(t.median_b),
-                _f(t.mean_a),
-                _f(t.mean_b),
-                _f(t.u),
-                f"{t.effect:.2f}",
-                _p(t.p),
-            ]
-            for t in ta.tests
-        ],
-    )
+    lines += _tests_table(ta.tests)
+    if ta.last_tests:
+        lines += [
+            "The same tests on each run's last generation's best (re-evaluated "
+            "like its best; reported beside, deciding no verdict):",
+            "",
+        ]
+        lines += _tests_table(ta.last_tests)
     lines += _relevance_section(ta, analysis)
     lines += _other_relevance_sections(ta, analysis)
     lines += _exploration_section(ta, analysis)
@@ -304,6 +383,29 @@ def _relevance_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         )
     if notes:
         lines += ["The paper's other listed features: " + "; ".join(notes) + ".", ""]
+    above = ta.relevance_above_chance
+    if above is not None:
+        lines += [
+            f"Ranked by MI above chance (each run's MI minus its own chance level, "
+            f"then mean and SD over runs, bits): the ranking the relevance claims "
+            f"are judged on. The {n} most relevant:",
+            "",
+        ]
+        best = above.top(n)
+        lines += markdown_table(
+            ["#", "feature", "mean above chance", "SD", "raw rank", "in TS char."],
+            [
+                [
+                    str(i + 1),
+                    name,
+                    f"{best.mean[i]:.2f}",
+                    _f(best.sd[i], 2),
+                    f"#{table.rank_of(name)}",
+                    "yes" if best.in_task_specific[i] else "",
+                ]
+                for i, name in enumerate(best.names)
+            ],
+        )
     return lines
 
 
@@ -362,8 +464,12 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         f"runs; colour: {s.fitness_percentile:g}th fitness percentile of those "
         f"individuals; red rings: the high-fitness region (the "
         f"{100 * s.high_fitness_units:g} % of occupied units with the highest "
-        "percentile over all treatments). Quantisation error "
-        f"{maps.quantisation_error:.2f} (z units).",
+        "percentile over all treatments"
+        + _region_floor(ta.task, maps)
+        + "). Quantisation error "
+        f"{maps.quantisation_error:.2f} (z units). The shares depend on the SOM's "
+        f"seed ({s.seed}) and grid; a digest holds one map, so their sensitivity "
+        "to either is untested here.",
         "",
     ]
     rows = []
@@ -389,6 +495,18 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         rows,
     )
     return lines
+
+
+def _region_floor(task: str, maps: ExplorationMaps) -> str:
+    floor = deceptive_optimum(task)
+    if floor is None:
+        return ""
+    region = maps.pooled_percentile[maps.region]
+    start = f"; it starts at {region.min():.4g}" if region.size else "; no unit is"
+    return (
+        f", and only those above the task's deceptive optimum {floor:.4g}, which a "
+        f"team that never charges reaches{start}"
+    )
 
 
 def _sd(x: np.ndarray) -> float:
@@ -430,7 +548,6 @@ def _physics_difference(config: ExperimentConfig) -> str:
 
 def _differences(analysis: Analysis) -> list[str]:
     claims = analysis.claims
-    counts = Counter(c.verdict for c in claims)
     study = analysis.digest
     tasks = [ta.task for ta in analysis.tasks if is_paper_task(ta.task)]
     some = study.of(tasks[0])[0].config
@@ -443,9 +560,7 @@ def _differences(analysis: Analysis) -> list[str]:
     lines = [
         "## Where we differ, and why we might",
         "",
-        f"Of {len(claims)} claims: {counts[Verdict.AGREE]} agree, "
-        f"{counts[Verdict.DISAGREE]} disagree, {counts[Verdict.INCONCLUSIVE]} "
-        "inconclusive.",
+        _totals_line(claims),
         "",
     ]
     disagreements = [c for c in claims if c.verdict is Verdict.DISAGREE]
@@ -719,12 +834,7 @@ def write_report(
 def _claims_section(analysis: Analysis) -> list[str]:
     lines = ["## The paper's claims, one by one", ""]
     lines += [
-        f"Verdicts at alpha = {analysis.settings.alpha}: *agree* when our "
-        "two-sided Mann-Whitney test is significant in the paper's direction (or, for "
-        "a claim of no difference, not significant), *disagree* when it says the "
-        "opposite, *inconclusive* when our runs cannot tell; A = U / (n_a n_b) is "
-        "the chance that a run of the first treatment beats one of the second. The "
-        "rules are in `sdbc_evolution/study/claims.py`.",
+        _rules_text(analysis.settings.alpha),
         "",
     ]
     for topic, heading in CLAIM_TOPICS.items():
@@ -747,15 +857,11 @@ def _predictions_section(analysis: Analysis) -> list[str]:
     lines = [
         "## The study's predictions",
         "",
-        "What the study's preset predicts, judged on each run's best "
-        f"fitness by a two-sided Mann-Whitney test at alpha = "
-        f"{analysis.settings.alpha}: *held* when the test agrees, *did not hold* "
-        "when it says the opposite, *cannot tell* when a predicted difference does "
-        "not show. A prediction of no difference (or of not below) holds by the "
-        "absence of a significant difference, which few runs give all too easily: "
-        "A = U / (n_a n_b), the chance that a run of the first treatment beats one "
-        "of the second, says how close the treatments were. The rules are in "
-        "`sdbc_evolution/study/claims.py` (`judge_predictions`).",
+        "What the study's preset predicts, judged on each run's best fitness "
+        "by the rules of the paper's claims: *held* where a claim would agree, "
+        "*did not hold* where it would disagree, *cannot tell* otherwise. "
+        + _rules_text(analysis.settings.alpha)
+        + " (`judge_predictions`).",
         "",
     ]
     rows = [
@@ -766,11 +872,24 @@ def _predictions_section(analysis: Analysis) -> list[str]:
             r.prediction.rule_text(),
             r.evidence,
             _p(r.p),
+            "" if r.test is None else _p(r.test.p_holm),
+            _interval(r.test),
             f"**{r.outcome}**",
         ]
         for i, r in enumerate(analysis.predictions)
     ]
     lines += markdown_table(
-        ["#", "prediction", "task", "rule", "ours", "p", "outcome"], rows
+        [
+            "#",
+            "prediction",
+            "task",
+            "rule",
+            "ours",
+            "p",
+            "Holm p",
+            "A [95 % CI]",
+            "outcome",
+        ],
+        rows,
     )
     return lines

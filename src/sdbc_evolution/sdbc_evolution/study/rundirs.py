@@ -10,7 +10,8 @@ generation, numbered 0, 1, ...; every ``individuals/gen_NNNNN.npz`` opens and ho
 (a run still going, a truncated CSV, a corrupt npz, a missing file) makes the run a
 :class:`RunProblem`, reported by name; the analysis goes on without it. If the study
 directory has ``study.yaml``, runs its preset expects but that are not there are
-reported too.
+reported too, and so are runs whose champions the preset re-evaluates
+(``champion_trials``) and whose ``champion.json`` is missing or unreadable.
 
 Reading a run checks every file once, keeping per generation only what is small
 (fitness, the sum of trial lengths); the SDBC vectors are read again, one generation
@@ -40,6 +41,12 @@ from sdbc_evolution.run.results import (
     GENERATIONS_FILE,
     INDIVIDUALS_DIR,
     WEIGHT_PREFIX,
+)
+from sdbc_evolution.study.champions import (
+    CHAMPION_FILE,
+    ChampionError,
+    ChampionSummary,
+    read_champions,
 )
 from sdbc_evolution.study.paper import PAPER_TASKS
 from sdbc_evolution.study.plan import STUDY_FILE, study_plan
@@ -92,6 +99,8 @@ class RunData:
     fitness: list[np.ndarray] = field(repr=False)
     trial_steps: np.ndarray = field(repr=False)
     weight_names: tuple[str, ...] = ()
+    champions: ChampionSummary | None = None
+    """Its champions re-evaluated (:mod:`.champions`), if they were."""
 
     @property
     def task(self) -> str:
@@ -241,8 +250,22 @@ def load_run(path: Path, root: Path) -> RunData | RunProblem:
             return RunProblem(name, f"{where}: fitness holds NaN or infinity")
         fitness.append(f)
         steps[g] = float(np.sum(sdbc[:, length_index], dtype=np.float64)) * trials
+    champions = None
+    if (path / CHAMPION_FILE).is_file():
+        try:
+            champions = ChampionSummary.of(read_champions(path))
+        except ChampionError as error:
+            return RunProblem(name, str(error))
     return RunData(
-        name, path, config, columns, sdbc_names, fitness, steps, weight_names
+        name,
+        path,
+        config,
+        columns,
+        sdbc_names,
+        fitness,
+        steps,
+        weight_names,
+        champions,
     )
 
 
@@ -320,6 +343,16 @@ def load_study(root: str | Path) -> StudyData:
             seen = {r.path.resolve() for r in runs} | {
                 (root / p.name).resolve() for p in problems
             }
+            if preset.champion_trials:
+                unjudged = [r for r in runs if r.champions is None]
+                runs = [r for r in runs if r.champions is not None]
+                problems += [
+                    RunProblem(
+                        r.name,
+                        f"{CHAMPION_FILE} missing: champions not re-evaluated yet",
+                    )
+                    for r in unjudged
+                ]
             for spec in plan:
                 if spec.path.resolve() not in seen:
                     problems.append(

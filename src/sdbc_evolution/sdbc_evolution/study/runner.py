@@ -23,6 +23,10 @@ Where the work goes:
 - **Dask** (``scheduler``): one run after the other, each generation's trials spread
   over the cluster by :class:`~sdbc_evolution.run.evaluators.DaskEvaluator`.
 
+A preset with ``champion_trials`` makes a run end with its champions' re-evaluation
+(:mod:`.champions`), done in the run's process under its lock; a run found with its
+generations done and that re-evaluation missing is re-evaluated and nothing else.
+
 Each run directory gets ``study_run.json``: how each stretch of its generations was
 run (evaluator, workers per run, runs side by side), which the cost analysis needs
 to turn seconds into per-worker rates.
@@ -45,6 +49,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sdbc_evolution.run.evaluators import (
     DEFAULT_CONNECT_TIMEOUT,
     Evaluator,
@@ -59,6 +65,7 @@ from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
 from sdbc_evolution.run.stopping import STOP_SIGNALS
+from sdbc_evolution.study.champions import reevaluate_champions
 from sdbc_evolution.study.plan import (
     LOG_FILE,
     STUDY_FILE,
@@ -240,6 +247,8 @@ def run_study(
                 outcome.discarded.append((spec.name, where, status.detail))
                 say(f"{spec.name}: cannot resume ({status.detail}); moved to {where}")
                 status = RunStatus(RunProgress.NEW)
+            if status.state is RunProgress.REEVALUATE:
+                say(f"{spec.name}: champions to re-evaluate ({status.detail})")
         finally:
             # Released for the process that runs it, which locks it again and
             # reads the status anew (another session may finish it meanwhile).
@@ -402,6 +411,16 @@ def execute_run(
         if status.state is RunProgress.FINISHED:
             lock.release()
             return RunOutcome(spec.name, status.generations_done, finished=True)
+        if status.state is RunProgress.REEVALUATE:
+            outcome = RunOutcome(spec.name, status.generations_done, finished=False)
+            try:
+                _reevaluate_champions(spec, evaluator)
+                outcome.finished = True
+            except KeyboardInterrupt:
+                outcome.interrupted = True
+            finally:
+                lock.release()
+            return outcome
         if status.state is RunProgress.PARTIAL:
             experiment = Experiment.resume(spec.config, spec.path, evaluator, lock=lock)
         elif status.state is RunProgress.NEW:
@@ -417,6 +436,9 @@ def execute_run(
     with experiment:
         try:
             experiment.run(lambda record: on_generation(record.generation + 1))
+            # Still under the run's lock: the run is finished once its champions
+            # are judged on fresh trials (a Ctrl-C here redoes only this).
+            _reevaluate_champions(spec, evaluator)
             outcome.finished = True
         except KeyboardInterrupt:
             outcome.interrupted = True
@@ -424,6 +446,13 @@ def execute_run(
             outcome.generations_done = experiment.state.generation
             _note_execution(spec.path, first, outcome, started, execution_note)
     return outcome
+
+
+def _reevaluate_champions(spec: RunSpec, evaluator: Evaluator) -> None:
+    if spec.champion_seeds:
+        reevaluate_champions(
+            spec.path, spec.config, evaluator, np.array(spec.champion_seeds)
+        )
 
 
 def _note_execution(
