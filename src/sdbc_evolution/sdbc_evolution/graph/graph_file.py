@@ -6,10 +6,16 @@ A graph file is a ROS 2 parameters file (``--params-file`` syntax: node name key
 stays valid for any node's ``--params-file``. The task is named once, under ``/**``
 (``task``, ``task_config``), so that every node runs the same one.
 :func:`trial_graph` writes the contents of one for a single genome.
+
+Section keys are node names as rcl matches them: ``simulator`` means the node
+``/simulator`` only, so a graph pushed into a namespace needs its relative keys
+made absolute (:func:`namespaced_parameters`); ``/**`` and ``/**/controller``
+match under any namespace as they are.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +38,10 @@ SHARED_KEY = "/**"
 """Parameter section that every node reads; it names the task."""
 CONTROLLERS_KEY = "/**/controller"
 """Parameter section of every controller node (in any robot's namespace)."""
+GRAPH_NAMESPACE_PREFIX = "graph_"
+"""With ``graphs: N`` (N > 1), graph k's simulator and controllers live in the
+namespace ``graph_<k>`` (under the launcher's ``--namespace``, if any)."""
+_NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
 class GraphError(SettingsError):
@@ -58,6 +68,10 @@ class LaunchSettings:
     ``--trial`` requests."""
     trial_timeout: PositiveFloat = 600.0
     """Seconds to wait for the answer to one ``--trial``."""
+    graphs: PositiveInt = 1
+    """Simulator graphs (a simulator and its controllers each) to start; with more
+    than one, graph k runs in the namespace ``graph_<k>`` and the evolution node
+    spreads each generation's trials over them (its ``graph_namespaces``)."""
 
 
 @dataclass(frozen=True)
@@ -177,3 +191,48 @@ def has_genome(graph: GraphFile) -> bool:
         "genome" in section.get("ros__parameters", {})
         for section in graph.parameters.values()
     )
+
+
+def check_namespace(namespace: str) -> str:
+    """``namespace`` without its leading and trailing slashes, checked as ROS 2
+    names are (tokens of letters, digits and underscores, not starting with a
+    digit, joined by ``/``); "" for none.
+
+    Raises:
+        GraphError: Naming the bad namespace.
+    """
+    stripped = namespace.strip("/")
+    if stripped and not all(_NAME_TOKEN.match(t) for t in stripped.split("/")):
+        raise GraphError(
+            f"namespace {namespace!r}: a ROS 2 namespace is tokens of letters, "
+            "digits and underscores (not starting with a digit) joined by '/'"
+        )
+    return stripped
+
+
+def join_namespace(*parts: str) -> str:
+    """The namespaces ``parts`` joined, without a leading slash ("" for none)."""
+    return "/".join(p.strip("/") for p in parts if p.strip("/"))
+
+
+def graph_namespaces(settings: LaunchSettings) -> tuple[str, ...]:
+    """The namespaces of the simulator graphs, relative to the launcher's own:
+    ("",) for one graph, ``graph_0``, ``graph_1``, ... for several."""
+    if settings.graphs == 1:
+        return ("",)
+    return tuple(f"{GRAPH_NAMESPACE_PREFIX}{k}" for k in range(settings.graphs))
+
+
+def namespaced_parameters(
+    parameters: Mapping[str, Any], namespace: str
+) -> dict[str, Any]:
+    """``parameters`` (sections by node name) for nodes in ``namespace`` or in a
+    graph's namespace below it: a relative key such as ``simulator`` becomes
+    ``/<namespace>/**/simulator`` (``/**/simulator`` without a namespace); keys
+    that start with ``/`` (``/**``, ``/**/controller``, absolute names) are kept
+    as written."""
+    prefix = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
+    return {
+        (key if key.startswith("/") else f"{prefix}/**/{key}"): value
+        for key, value in parameters.items()
+    }
