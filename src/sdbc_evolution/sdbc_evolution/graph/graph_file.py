@@ -95,8 +95,19 @@ class GraphFile:
         return dict(self.parameters.get(key, {}).get("ros__parameters", {}))
 
 
-def load_graph_file(path: str | Path) -> GraphFile:
+def load_graph_file(
+    path: str | Path,
+    task: str | None = None,
+    task_config: str | None = None,
+    launch: Mapping[str, Any] | None = None,
+) -> GraphFile:
     """Reads and checks a graph file.
+
+    Args:
+        path: The file.
+        task, task_config: Replace the file's (under ``/**``), as a launch
+            file's arguments do.
+        launch: :class:`LaunchSettings` values that replace the file's.
 
     Raises:
         GraphError: Unreadable YAML, a section without ``ros__parameters``, an
@@ -115,13 +126,13 @@ def load_graph_file(path: str | Path) -> GraphFile:
         raise GraphError(f"graph file {path}: expected a mapping of sections")
     data = dict(data)
     section = data.pop(LAUNCH_KEY, None) or {"ros__parameters": {}}
-    launch = section.get("ros__parameters") if isinstance(section, Mapping) else None
-    if not isinstance(launch, Mapping):
+    given = section.get("ros__parameters") if isinstance(section, Mapping) else None
+    if not isinstance(given, Mapping):
         raise GraphError(
             f"graph file {path}: '{LAUNCH_KEY}' needs a 'ros__parameters' mapping"
         )
     try:
-        settings = load(LaunchSettings, launch, LAUNCH_KEY)
+        settings = load(LaunchSettings, {**given, **(launch or {})}, LAUNCH_KEY)
     except SettingsError as error:
         raise GraphError(f"graph file {path}: {error}", error.problems) from None
     for key, section in data.items():
@@ -133,6 +144,10 @@ def load_graph_file(path: str | Path) -> GraphFile:
                 f"graph file {path}: section {key!r} needs a 'ros__parameters' mapping"
             )
     shared = dict(data.get(SHARED_KEY, {}).get("ros__parameters", {}))
+    if task is not None:
+        shared["task"] = task
+    if task_config is not None:
+        shared["task_config"] = task_config
     task = shared.get("task")
     if not isinstance(task, str) or not task:
         raise GraphError(
@@ -141,21 +156,21 @@ def load_graph_file(path: str | Path) -> GraphFile:
         )
     # A task in a file of one's own, by its absolute path: every node finds it.
     task = shared["task"] = task_reference(task)
-    task_config = shared.get("task_config", {})
-    if isinstance(task_config, str):
+    config = shared.get("task_config", {})
+    if isinstance(config, str):
         try:
-            task_config = parse_task_config(task_config)
+            config = parse_task_config(config)
         except ValueError as error:
             raise GraphError(f"graph file {path}: {error}") from None
-    if not isinstance(task_config, Mapping):
+    if not isinstance(config, Mapping):
         raise GraphError(
             f"graph file {path}: '{SHARED_KEY}' task_config must be a mapping of task "
-            f"settings, got {task_config!r}"
+            f"settings, got {config!r}"
         )
     # Nodes read task_config as a string parameter.
-    shared["task_config"] = format_task_config(task_config)
+    shared["task_config"] = format_task_config(config)
     data[SHARED_KEY] = {"ros__parameters": shared}
-    return GraphFile(settings, data, task, dict(task_config))
+    return GraphFile(settings, data, task, dict(config))
 
 
 def trial_graph(

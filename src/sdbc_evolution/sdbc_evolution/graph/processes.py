@@ -67,6 +67,16 @@ GRAPH_NAMESPACES_PARAMETER = "graph_namespaces"
 """The evolution node's parameter naming the simulator graphs it evaluates on."""
 
 
+PROGRAMS = {
+    SIMULATOR_MODULE: ("sdbc_sim", "simulator_node"),
+    CONTROLLER_MODULE: ("sdbc_sim", "controller_node"),
+    EVOLUTION_MODULE: ("sdbc_evolution", "evolution_node"),
+    RECORDER_MODULE: ("sdbc_evolution", "recorder"),
+}
+"""Each node program's module and its (package, executable), as colcon installs
+it under ``lib/<package>`` (what a launch file's ``Node`` action names)."""
+
+
 @dataclass(frozen=True)
 class NodeProcess:
     """One process of the graph.
@@ -74,27 +84,51 @@ class NodeProcess:
     Attributes:
         name: Label in logs and messages ("simulator", "controllers 0-1").
         module: The node program's module, run with this interpreter.
-        args: Its arguments.
+        args: Its own arguments (before ``--ros-args``).
+        namespace: The namespace it is pushed into ("" for none).
+        params_file: Its ``--params-file``.
+        parameters: Parameter overrides after the file (``-p name:=value``,
+            values as YAML).
         stops_last: Stopped only once every other process has ended (the
             recorder: it must take what the others sent as they stopped).
     """
 
     name: str
     module: str
-    args: tuple[str, ...]
+    args: tuple[str, ...] = ()
+    namespace: str = ""
+    params_file: Path | None = None
+    parameters: tuple[tuple[str, str], ...] = ()
     stops_last: bool = False
+
+    @property
+    def program(self) -> tuple[str, str]:
+        """Its (package, executable)."""
+        return PROGRAMS[self.module]
+
+    @property
+    def ros_arguments(self) -> tuple[str, ...]:
+        """What follows ``--ros-args``."""
+        remap = ("-r", f"__ns:=/{self.namespace}") if self.namespace else ()
+        params = ("--params-file", str(self.params_file)) if self.params_file else ()
+        overrides = tuple(a for n, v in self.parameters for a in ("-p", f"{n}:={v}"))
+        return (*remap, *overrides, *params)
 
     @property
     def argv(self) -> tuple[str, ...]:
         """The command line, as a user would type it."""
-        return module_command(self.module, *self.args)
+        ros = self.ros_arguments
+        return module_command(
+            self.module, *self.args, *(("--ros-args", *ros) if ros else ())
+        )
 
     def owned_argv(self, owner: int, grace: float) -> tuple[str, ...]:
         """The command line that runs it under :mod:`sdbc_evolution.graph.owned`:
         it stops when the process ``owner`` ends (SIGINT, then an exit after
         ``grace`` seconds)."""
-        return module_command(
-            OWNED_MODULE, str(owner), f"{grace:g}", self.module, *self.args
+        return (
+            *module_command(OWNED_MODULE, str(owner), f"{grace:g}"),
+            *self.argv[2:],
         )
 
 
@@ -136,35 +170,38 @@ def graph_processes(
     except (TypeError, ValueError) as error:
         raise GraphError(f"graph file: {error}") from None
 
-    def ros(ns: str) -> tuple[str, ...]:
-        remap = ("-r", f"__ns:=/{ns}") if ns else ()
-        return ("--ros-args", *remap, "--params-file", str(params_file))
+    def node(name: str, module: str, ns: str, *args: str, **more: Any) -> NodeProcess:
+        return NodeProcess(
+            name, module, args, namespace=ns, params_file=params_file, **more
+        )
 
     subgraphs = graph_namespaces(graph.settings)
     processes = []
     for sub in subgraphs:
         ns = join_namespace(namespace, sub)
         label = f"{sub} " if sub else ""
-        processes.append(NodeProcess(f"{label}simulator", SIMULATOR_MODULE, ros(ns)))
+        processes.append(node(f"{label}simulator", SIMULATOR_MODULE, ns))
         per = graph.settings.robots_per_process
         for first in range(0, n_robots, per):
             robots = [str(i) for i in range(first, min(first + per, n_robots))]
             which = robots[0] if len(robots) == 1 else f"{robots[0]}-{robots[-1]}"
             processes.append(
-                NodeProcess(
+                node(
                     f"{label}controller {which}",
                     CONTROLLER_MODULE,
-                    ("--robots", *robots, *ros(ns)),
+                    ns,
+                    "--robots",
+                    *robots,
                 )
             )
     if graph.settings.evolution:
         several = (
-            ("-p", f"{GRAPH_NAMESPACES_PARAMETER}:=[{', '.join(subgraphs)}]")
+            ((GRAPH_NAMESPACES_PARAMETER, f"[{', '.join(subgraphs)}]"),)
             if len(subgraphs) > 1
             else ()
         )
         processes.append(
-            NodeProcess("evolution", EVOLUTION_MODULE, (*ros(namespace), *several))
+            node("evolution", EVOLUTION_MODULE, namespace, parameters=several)
         )
     if record is not None:
         # Resolved here, so that the bag names the topics as `ros2 topic list` does.
@@ -187,14 +224,28 @@ def graph_processes(
             for topic in (EVOLUTION_TOPICS if graph.settings.evolution else ())
         ]
         processes.append(
-            NodeProcess(
+            node(
                 "recorder",
                 RECORDER_MODULE,
-                ("--output", str(record), "--topics", *topics, *ros(namespace)),
+                namespace,
+                "--output",
+                str(record),
+                "--topics",
+                *topics,
                 stops_last=True,
             )
         )
     return processes
+
+
+def write_parameters(graph_file: GraphFile, path: Path, namespace: str = "") -> None:
+    """Writes the nodes' parameters of ``graph_file`` to ``path`` (a
+    ``--params-file``), with its section keys made to match in ``namespace``."""
+    path.write_text(
+        yaml.safe_dump(
+            namespaced_parameters(graph_file.parameters, check_namespace(namespace))
+        )
+    )
 
 
 class ProcessGraph:
@@ -240,11 +291,7 @@ class ProcessGraph:
         nodes' parameters go to ``<work_dir>/parameters.yaml``, which must outlive
         the graph."""
         params_file = Path(work_dir) / PARAMETERS_FILE
-        params_file.write_text(
-            yaml.safe_dump(
-                namespaced_parameters(graph_file.parameters, check_namespace(namespace))
-            )
-        )
+        write_parameters(graph_file, params_file, namespace)
         return cls(
             graph_processes(graph_file, params_file, record, namespace),
             graph_file.settings.shutdown_timeout,
