@@ -54,11 +54,14 @@ class Startup:
         args: The program's own arguments (outside ``--ros-args``), parsed; empty
             for a program without a parser.
         executor: The executor the nodes are added to.
+        stop_signals: The stop request of a program with ``signals="stop"``.
+        ros_args: The whole command line as rclpy was given it.
     """
 
     args: argparse.Namespace
     executor: Executor
     stop_signals: StopSignals | None
+    ros_args: tuple[str, ...] = ()
 
     @property
     def stop(self) -> StopSignals:
@@ -131,7 +134,7 @@ def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) ->
         if program.threads > 1
         else SingleThreadedExecutor()
     )
-    startup = Startup(args, executor, stop)
+    startup = Startup(args, executor, stop, tuple(ros_argv))
     nodes: list[NodeT] = []
     try:
         for node in program.make_nodes(startup):
