@@ -55,8 +55,6 @@ from typing import Any, TypeVar
 import numpy as np
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sdbc_sim.nodes.interface import (
     BEST_GENOME_TOPIC,
@@ -67,6 +65,7 @@ from sdbc_sim.nodes.interface import (
     REPLAY_BEST_SERVICE,
     parse_task_config,
 )
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import available_tasks, find_task
@@ -101,7 +100,7 @@ STOP_WAIT = 5.0
 """Seconds the experiment thread gets to stop after Ctrl-C."""
 
 
-class EvolutionNode(Node):
+class EvolutionNode(CheckedNode):
     """Runs one experiment and publishes its progress.
 
     Parameters (ROS), all read-only:
@@ -205,6 +204,7 @@ class EvolutionNode(Node):
         self.task = self._build_task()
         self.stop = threading.Event()
         self.finished = threading.Event()
+        self.complete = False  # every generation done (not only stopped)
         self.failure: str | None = None
         self.best_genome: np.ndarray | None = None
         self.best_generation = -1
@@ -401,7 +401,8 @@ class EvolutionNode(Node):
                         self._publish(experiment, record, population, started)
                         if self.replay_after_generation:
                             self._replay_or_stop_replaying()
-            if not self.stop.is_set():
+                    self.complete = experiment.finished
+            if self.complete:
                 self.get_logger().info(f"run complete: results in {self.out}")
         except Exception as err:  # the thread's failure must reach the exit status
             if not self.stop.is_set():
@@ -494,23 +495,34 @@ class EvolutionNode(Node):
 
 def _run_experiment(startup: Startup, nodes: Sequence[EvolutionNode]) -> int:
     """Runs the experiment in a thread of its own while the executor serves the
-    replay service and the graph client's answers."""
+    replay service and the graph client's answers, until it is done or Ctrl-C or
+    SIGTERM asks to stop (the context stays up meanwhile: the experiment thread
+    may still be publishing)."""
     node = nodes[0]
     thread = threading.Thread(target=node.run, name="experiment", daemon=True)
     thread.start()
+    requested = startup.stop.requested
     try:
         while not (node.finished.is_set() and node.exit_when_done):
+            if requested.is_set():
+                break
             startup.executor.spin_once(timeout_sec=0.2)
-        return 1 if node.failure else 0
-    except (KeyboardInterrupt, ExternalShutdownException):
+    finally:
         node.stop.set()
+        thread.join(STOP_WAIT)
+    if node.failure:
+        return 1
+    if node.complete:
+        if requested.is_set():
+            print(
+                f"evolution_node: run complete: results in {node.out}", file=sys.stderr
+            )
+    else:
         print(
             f"evolution_node: interrupted; resume with resume:=true output:={node.out}",
             file=sys.stderr,
         )
-        return 0
-    finally:
-        thread.join(STOP_WAIT)
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -521,7 +533,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             serve=_run_experiment,
             # The experiment's own threads wait; these serve the graphs' answers.
             threads=4,
-            signals="rclpy",
         ),
         argv,
     )
