@@ -41,7 +41,6 @@ ROSDEP_KEYS = {
     "matplotlib": "python3-matplotlib",
     "numba": "python3-numba",
     "numpy": "python3-numpy",
-    "pydantic": "python3-pydantic",
     "scipy": "python3-scipy",
     "sklearn": "python3-sklearn",
     "tqdm": "python3-tqdm",
@@ -52,6 +51,8 @@ ROSDEP_KEYS = {
     "distributed": "python3-dask-distributed-pip",
     "minisom": "python3-minisom-pip",
     "pymunk": "python3-pymunk-pip",
+    # The database's python3-pydantic is pydantic 1 on Ubuntu 24.04.
+    "pydantic": "python3-pydantic-pip",
     "rosbags": "python3-rosbags-pip",
     "threadpoolctl": "python3-threadpoolctl-pip",
 }
@@ -129,7 +130,8 @@ def pip_key_problems(keys: set[str]) -> list[str]:
             problems.append(f"{key}: not defined for ubuntu/pip in rosdep.yaml")
             continue
         for name in packages:
-            if normalise(name) not in pinned:
+            # A floor ("pydantic>=2.0") names the package before its specifier.
+            if normalise(re.split(r"[<>=!~;\s]", name, maxsplit=1)[0]) not in pinned:
                 problems.append(
                     f"{key}: pip package {name} not pinned in requirements.txt"
                 )

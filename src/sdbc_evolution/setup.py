@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = "sdbc_evolution"
@@ -9,6 +11,9 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        # ros2 launch finds launch files and their graph files here.
+        ("share/" + package_name + "/launch", sorted(glob("launch/*.launch.*"))),
+        ("share/" + package_name + "/config", sorted(glob("../../configs/ros/*.yaml"))),
     ],
     python_requires=">=3.10",
     # The method, the GA, sdbc-evolve, sdbc-study and sdbc-conformance. The ROS

@@ -18,7 +18,9 @@ task state messages, and the names of the SDBC dimensions with it
 in the README ("Evolution through another simulator"): a node ``simulator`` with
 ``task`` and ``task_config`` parameters and the ``run_trial`` service, the
 ``task_state`` topic, and a controller node ``robot_<i>/controller`` per robot with
-a double-array ``genome`` parameter.
+a double-array ``genome`` parameter. Those names are relative: a client given a
+``namespace`` drives the graph pushed into it (``sdbc-graph --namespace``), so
+several graphs share a DDS domain, each with its own client.
 
 The caller's node must be spun by an executor in another thread (the client
 waits on futures that the executor completes). The service clients share a
@@ -206,6 +208,8 @@ class GraphClient:
         physics: The physics model the simulator must run (its
             ``physics_model`` parameter, checked by :meth:`check_task` when the
             simulator declares it); None: not checked.
+        namespace: The graph's namespace, relative to the node's (or absolute
+            with a leading ``/``); "" for the node's own.
 
     Raises:
         ValueError: ``n_robots`` missing or not positive, or at odds with ``task``.
@@ -221,6 +225,7 @@ class GraphClient:
         stop: threading.Event | None = None,
         n_robots: int | None = None,
         physics: str | None = None,
+        namespace: str = "",
     ) -> None:
         if task is not None:
             if n_robots not in (None, task.layout.n_controlled):
@@ -240,6 +245,8 @@ class GraphClient:
         self.task_config = dict(task_config or {})
         self.physics = physics
         self.n_robots = n_robots
+        self.namespace = namespace
+        prefix = namespace.rstrip("/") + "/" if namespace.strip("/") else ""
         self.description: TaskDescription | None = (
             None if task is None else task.description
         )
@@ -252,22 +259,24 @@ class GraphClient:
         """Held while a genome is set and its trials run: one user at a time."""
         group = ReentrantCallbackGroup()
         self._run_trial = node.create_client(
-            RunTrial, RUN_TRIAL_SERVICE, callback_group=group
+            RunTrial, prefix + RUN_TRIAL_SERVICE, callback_group=group
         )
         self._simulator_parameters = node.create_client(
-            GetParameters, f"{SIMULATOR_NODE}/get_parameters", callback_group=group
+            GetParameters,
+            f"{prefix}{SIMULATOR_NODE}/get_parameters",
+            callback_group=group,
         )
         self._controller_parameters = [
             node.create_client(
                 SetParameters,
-                f"{robot_namespace(i)}/{CONTROLLER_NODE}/set_parameters",
+                f"{prefix}{robot_namespace(i)}/{CONTROLLER_NODE}/set_parameters",
                 callback_group=group,
             )
             for i in range(self.n_robots)
         ]
         self._task_state = node.create_subscription(
             TaskStateMsg,
-            TASK_STATE_TOPIC,
+            prefix + TASK_STATE_TOPIC,
             self._on_task_state,
             TASK_STATE_QOS,
             # One message at a time, in order, whatever the executor's threads.
@@ -317,11 +326,12 @@ class GraphClient:
 
     def wait_for_graph(self, timeout: float | None = None) -> None:
         """Waits until the simulator, every controller and the task state topic
-        are there, and checks that the simulator runs this client's task.
+        are there, and checks that one simulator alone answers and that it runs
+        this client's task.
 
         Raises:
-            GraphClientError: Naming what is missing after ``timeout`` seconds, or
-                the task mismatch.
+            GraphClientError: Naming what is missing after ``timeout`` seconds,
+                a second simulator, or the task mismatch.
         """
         timeout = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + timeout
@@ -347,7 +357,20 @@ class GraphClient:
                 )
             time.sleep(POLL)
         time.sleep(DISCOVERY_GRACE)
+        self.check_single_simulator()
         self.check_task()
+
+    def check_single_simulator(self) -> None:
+        """Raises GraphClientError if more than one node offers the simulator's
+        service: another graph in the domain, whose answers would be taken for
+        this one's."""
+        servers = self.node.count_services(self._run_trial.srv_name)
+        if servers > 1:
+            raise GraphClientError(
+                f"{servers} simulators offer {self._run_trial.srv_name}: another "
+                "graph runs in this DDS domain; give each graph a namespace of its "
+                "own (sdbc-graph --namespace) or a ROS_DOMAIN_ID of its own"
+            )
 
     def check_task(self) -> None:
         """Raises GraphClientError unless the simulator runs this client's task
@@ -363,11 +386,23 @@ class GraphClient:
             GetParameters.Request(names=["task", "task_config"]),
             "answer from the simulator's parameter service",
         )
-        name, config = (v.string_value for v in answer.values)
-        if name != self.task_name or parse_task_config(config) != self.task_config:
+        if len(answer.values) != 2 or any(
+            v.type != ParameterType.PARAMETER_STRING for v in answer.values
+        ):
             raise GraphClientError(
-                f"the simulator runs task {name!r} with settings {config}, this "
-                f"client expects {self.task_name!r} with {self.task_config}"
+                f"the simulator ({self._simulator_parameters.srv_name}) has no string "
+                "parameters task and task_config, which the contract asks for"
+            )
+        name, config = (v.string_value for v in answer.values)
+        try:
+            same_config = parse_task_config(config) == self.task_config
+        except ValueError:
+            same_config = False
+        if name != self.task_name or not same_config:
+            raise GraphClientError(
+                f"the simulator ({self._simulator_parameters.srv_name}) runs task "
+                f"{name!r} with settings {config}, this client expects "
+                f"{self.task_name!r} with {self.task_config}"
             )
         if self.physics is None:
             return

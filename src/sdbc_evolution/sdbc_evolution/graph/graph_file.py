@@ -6,10 +6,16 @@ A graph file is a ROS 2 parameters file (``--params-file`` syntax: node name key
 stays valid for any node's ``--params-file``. The task is named once, under ``/**``
 (``task``, ``task_config``), so that every node runs the same one.
 :func:`trial_graph` writes the contents of one for a single genome.
+
+Section keys are node names as rcl matches them: ``simulator`` means the node
+``/simulator`` only, so a graph pushed into a namespace needs its relative keys
+made absolute (:func:`namespaced_parameters`); ``/**`` and ``/**/controller``
+match under any namespace as they are.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +39,10 @@ SHARED_KEY = "/**"
 """Parameter section that every node reads; it names the task."""
 CONTROLLERS_KEY = "/**/controller"
 """Parameter section of every controller node (in any robot's namespace)."""
+GRAPH_NAMESPACE_PREFIX = "graph_"
+"""With ``graphs: N`` (N > 1), graph k's simulator and controllers live in the
+namespace ``graph_<k>`` (under the launcher's ``--namespace``, if any)."""
+_NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
 class GraphError(SettingsError):
@@ -59,6 +69,10 @@ class LaunchSettings:
     ``--trial`` requests."""
     trial_timeout: PositiveFloat = 600.0
     """Seconds to wait for the answer to one ``--trial``."""
+    graphs: PositiveInt = 1
+    """Simulator graphs (a simulator and its controllers each) to start; with more
+    than one, graph k runs in the namespace ``graph_<k>`` and the evolution node
+    spreads each generation's trials over them (its ``graph_namespaces``)."""
 
 
 @dataclass(frozen=True)
@@ -82,8 +96,19 @@ class GraphFile:
         return dict(self.parameters.get(key, {}).get("ros__parameters", {}))
 
 
-def load_graph_file(path: str | Path) -> GraphFile:
+def load_graph_file(
+    path: str | Path,
+    task: str | None = None,
+    task_config: str | None = None,
+    launch: Mapping[str, Any] | None = None,
+) -> GraphFile:
     """Reads and checks a graph file.
+
+    Args:
+        path: The file.
+        task, task_config: Replace the file's (under ``/**``), as a launch
+            file's arguments do.
+        launch: :class:`LaunchSettings` values that replace the file's.
 
     Raises:
         GraphError: Unreadable YAML, a section without ``ros__parameters``, an
@@ -102,13 +127,13 @@ def load_graph_file(path: str | Path) -> GraphFile:
         raise GraphError(f"graph file {path}: expected a mapping of sections")
     data = dict(data)
     section = data.pop(LAUNCH_KEY, None) or {"ros__parameters": {}}
-    launch = section.get("ros__parameters") if isinstance(section, Mapping) else None
-    if not isinstance(launch, Mapping):
+    given = section.get("ros__parameters") if isinstance(section, Mapping) else None
+    if not isinstance(given, Mapping):
         raise GraphError(
             f"graph file {path}: '{LAUNCH_KEY}' needs a 'ros__parameters' mapping"
         )
     try:
-        settings = load(LaunchSettings, launch, LAUNCH_KEY)
+        settings = load(LaunchSettings, {**given, **(launch or {})}, LAUNCH_KEY)
     except SettingsError as error:
         raise GraphError(f"graph file {path}: {error}", error.problems) from None
     for key, section in data.items():
@@ -120,6 +145,10 @@ def load_graph_file(path: str | Path) -> GraphFile:
                 f"graph file {path}: section {key!r} needs a 'ros__parameters' mapping"
             )
     shared = dict(data.get(SHARED_KEY, {}).get("ros__parameters", {}))
+    if task is not None:
+        shared["task"] = task
+    if task_config is not None:
+        shared["task_config"] = task_config
     task = shared.get("task")
     if not isinstance(task, str) or not task:
         raise GraphError(
@@ -128,21 +157,21 @@ def load_graph_file(path: str | Path) -> GraphFile:
         )
     # A task in a file of one's own, by its absolute path: every node finds it.
     task = shared["task"] = task_reference(task)
-    task_config = shared.get("task_config", {})
-    if isinstance(task_config, str):
+    config = shared.get("task_config", {})
+    if isinstance(config, str):
         try:
-            task_config = parse_task_config(task_config)
+            config = parse_task_config(config)
         except ValueError as error:
             raise GraphError(f"graph file {path}: {error}") from None
-    if not isinstance(task_config, Mapping):
+    if not isinstance(config, Mapping):
         raise GraphError(
             f"graph file {path}: '{SHARED_KEY}' task_config must be a mapping of task "
-            f"settings, got {excerpt(task_config)}"
+            f"settings, got {excerpt(config)}"
         )
     # Nodes read task_config as a string parameter.
-    shared["task_config"] = format_task_config(task_config)
+    shared["task_config"] = format_task_config(config)
     data[SHARED_KEY] = {"ros__parameters": shared}
-    return GraphFile(settings, data, task, dict(task_config))
+    return GraphFile(settings, data, task, dict(config))
 
 
 def trial_graph(
@@ -178,3 +207,48 @@ def has_genome(graph: GraphFile) -> bool:
         "genome" in section.get("ros__parameters", {})
         for section in graph.parameters.values()
     )
+
+
+def check_namespace(namespace: str) -> str:
+    """``namespace`` without its leading and trailing slashes, checked as ROS 2
+    names are (tokens of letters, digits and underscores, not starting with a
+    digit, joined by ``/``); "" for none.
+
+    Raises:
+        GraphError: Naming the bad namespace.
+    """
+    stripped = namespace.strip("/")
+    if stripped and not all(_NAME_TOKEN.match(t) for t in stripped.split("/")):
+        raise GraphError(
+            f"namespace {namespace!r}: a ROS 2 namespace is tokens of letters, "
+            "digits and underscores (not starting with a digit) joined by '/'"
+        )
+    return stripped
+
+
+def join_namespace(*parts: str) -> str:
+    """The namespaces ``parts`` joined, without a leading slash ("" for none)."""
+    return "/".join(p.strip("/") for p in parts if p.strip("/"))
+
+
+def graph_namespaces(settings: LaunchSettings) -> tuple[str, ...]:
+    """The namespaces of the simulator graphs, relative to the launcher's own:
+    ("",) for one graph, ``graph_0``, ``graph_1``, ... for several."""
+    if settings.graphs == 1:
+        return ("",)
+    return tuple(f"{GRAPH_NAMESPACE_PREFIX}{k}" for k in range(settings.graphs))
+
+
+def namespaced_parameters(
+    parameters: Mapping[str, Any], namespace: str
+) -> dict[str, Any]:
+    """``parameters`` (sections by node name) for nodes in ``namespace`` or in a
+    graph's namespace below it: a relative key such as ``simulator`` becomes
+    ``/<namespace>/**/simulator`` (``/**/simulator`` without a namespace); keys
+    that start with ``/`` (``/**``, ``/**/controller``, absolute names) are kept
+    as written."""
+    prefix = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
+    return {
+        (key if key.startswith("/") else f"{prefix}/**/{key}"): value
+        for key, value in parameters.items()
+    }

@@ -7,14 +7,26 @@ optionally the evolution node and a bag recorder, each as its own process
 
 It then waits: for Ctrl-C, for a node process to exit (which stops the graph), or,
 with ``--trial SEED`` (repeatable), for those trials, which it asks the simulator
-for and reports, and stops. Stopping sends SIGINT to every process, gives each
+for and reports, and stops. Before the first trial it checks, as the evolution
+node does, that one simulator alone answers and that it runs the graph file's task
+with its settings and physics model (:class:`~sdbc_evolution.graph.client.
+GraphClient`). Stopping sends SIGINT to every process, gives each
 ``shutdown_timeout`` seconds, kills what is left, and removes the shared-memory
-files that Fast DDS leaves in ``/dev/shm`` (:mod:`sdbc_evolution.graph.shm`).
+files that Fast DDS leaves in ``/dev/shm`` (:mod:`sdbc_evolution.graph.shm`). If
+the launcher itself is killed, every node stops on its own
+(:mod:`sdbc_evolution.graph.owned`).
+
+``--namespace NS`` pushes the whole graph into NS (``/NS/simulator``,
+``/NS/robot_0/controller``, ``/NS/task_state``, ...), so that several graphs share
+one DDS domain. With ``graphs: K`` in the ``sdbc_graph`` section, K simulator
+graphs run side by side (namespaces ``graph_0`` ... below NS) and the evolution
+node spreads each generation over them; ``--trial`` then runs on ``graph_0``.
 
 Examples::
 
     sdbc-graph configs/ros/gate_escape.yaml
     sdbc-graph configs/ros/gate_escape.yaml --trial 7 --record bags/trial_7
+    sdbc-graph configs/ros/gate_escape.yaml --namespace team_a --trial 7
     sdbc-graph configs/ros/evolution.yaml
 
 Exit status: 0 done, 1 a node process failed or a trial was aborted, 2 bad input,
@@ -27,6 +39,7 @@ import argparse
 import signal
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -35,7 +48,9 @@ from typing import Any
 from sdbc_evolution.graph.graph_file import (
     CONTROLLERS_KEY,
     GraphError,
-    LaunchSettings,
+    GraphFile,
+    check_namespace,
+    graph_namespaces,
     has_genome,
     load_graph_file,
 )
@@ -64,6 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--record", type=Path, metavar="BAG", help="record the graph's topics to BAG"
     )
     parser.add_argument(
+        "--namespace",
+        default="",
+        metavar="NS",
+        help="push every node of the graph into the namespace NS",
+    )
+    parser.add_argument(
         "--log-dir",
         type=Path,
         help="write each process's output to DIR/<name>.log instead of the terminal",
@@ -71,75 +92,91 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _wait_until_ready(
-    graph: ProcessGraph, node: Any, client: Any, record: bool, timeout: float
-) -> None:
-    """Waits for the simulator's service and, when recording, for the recorder's
-    ``recorder/ready`` (every recorded topic matched to all its publishers)."""
-    import rclpy
+def _wait_for_recorder(graph: ProcessGraph, node: Any, timeout: float) -> None:
+    """Waits for the recorder's ``recorder/ready`` (every recorded topic matched
+    to all its publishers)."""
     from sdbc_sim.nodes.interface import LATCHED_QOS, RECORDER_READY_TOPIC
     from std_msgs.msg import Bool
 
+    ready = threading.Event()
+
+    def on_ready(msg: Bool) -> None:
+        if msg.data:
+            ready.set()
+
+    node.create_subscription(Bool, RECORDER_READY_TOPIC, on_ready, LATCHED_QOS)
     deadline = time.monotonic() + timeout
-    recorder = []
-    node.create_subscription(
-        Bool, RECORDER_READY_TOPIC, lambda m: recorder.append(m.data), LATCHED_QOS
-    )
-    while not (client.service_is_ready() and (not record or any(recorder))):
+    while not ready.wait(0.1):
         if dead := graph.exited():
             raise RuntimeError(f"node processes ended before the first trial: {dead}")
         if time.monotonic() > deadline:
-            raise RuntimeError(
-                f"the graph did not come up within {timeout:g} s (simulator service "
-                f"ready: {client.service_is_ready()}"
-                + (f", recorder ready: {any(recorder)}" if record else "")
-                + ")"
-            )
-        rclpy.spin_once(node, timeout_sec=0.1)
+            raise RuntimeError(f"the recorder was not ready within {timeout:g} s")
 
 
 def run_trials(
-    graph: ProcessGraph, seeds: Sequence[int], record: bool, settings: LaunchSettings
+    graph: ProcessGraph,
+    graph_file: GraphFile,
+    seeds: Sequence[int],
+    record: bool,
+    namespace: str = "",
 ) -> int:
-    """Asks the simulator for one trial per seed and prints each answer; 0 if all
-    ran, 1 otherwise."""
+    """Asks the simulator of ``graph`` (its first simulator graph, if several)
+    for one trial per seed and prints each answer; 0 if all ran, 1 otherwise.
+
+    The graph is checked first as the evolution node checks it: every controller
+    there, one simulator alone, running the graph file's task and settings."""
     import rclpy
+    from rclpy.executors import MultiThreadedExecutor
     from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
-    from sdbc_sim.nodes.interface import RUN_TRIAL_SERVICE
+    from sdbc_sim.tasks import make_task
 
-    from sdbc_msgs.srv import RunTrial
+    from sdbc_evolution.graph.client import GraphClient, GraphClientError
 
+    settings = graph_file.settings
     # Ctrl-C stays a KeyboardInterrupt here: the launcher then stops the graph.
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = Node("graph_launcher")
+    node = Node("graph_launcher", namespace="/" + namespace)
+    executor = MultiThreadedExecutor(num_threads=2)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
     status = 0
     try:
-        client = node.create_client(RunTrial, RUN_TRIAL_SERVICE)
-        _wait_until_ready(graph, node, client, record, settings.ready_timeout)
+        client = GraphClient(
+            node,
+            make_task(graph_file.task, **graph_file.task_config),
+            graph_file.task,
+            graph_file.task_config,
+            timeout=settings.trial_timeout,
+            physics=graph_file.section("simulator").get("physics_model"),
+            namespace=graph_namespaces(settings)[0],
+        )
+        if record:
+            _wait_for_recorder(graph, node, settings.ready_timeout)
+        try:
+            client.wait_for_graph(settings.ready_timeout)
+        except GraphClientError as error:
+            raise RuntimeError(str(error)) from None
         for seed in seeds:
-            future = client.call_async(RunTrial.Request(seed=seed))
-            rclpy.spin_until_future_complete(
-                node, future, timeout_sec=settings.trial_timeout
+            if dead := graph.exited():
+                raise RuntimeError(f"node processes ended: {dead}")
+            try:
+                answer = client.run_trial(seed)
+            except GraphClientError as error:
+                print(f"trial seed {seed}: failed: {error}")
+                status = 1
+                continue
+            print(
+                f"trial seed {seed}: fitness {answer.fitness:.6g}, length "
+                f"{answer.length}, characterisation "
+                f"{[round(float(v), 6) for v in answer.characterisation]}"
             )
-            answer = future.result()
-            if answer is None:
-                print(
-                    f"trial seed {seed}: no answer within {settings.trial_timeout:g} s"
-                )
-                status = 1
-            elif not answer.success:
-                print(f"trial seed {seed}: aborted: {answer.message}")
-                status = 1
-            else:
-                print(
-                    f"trial seed {seed}: fitness {answer.fitness:.6g}, length "
-                    f"{answer.length}, characterisation "
-                    f"{[round(v, 6) for v in answer.characterisation]}"
-                )
     finally:
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
+        spinner.join(timeout=5.0)
     return status
 
 
@@ -165,26 +202,35 @@ def _main(args: argparse.Namespace) -> int:
             raise GraphError(f"--record: {args.record} exists already; not overwriting")
         if args.trial and any(seed < 0 for seed in args.trial):
             raise GraphError(f"--trial: seeds must be non-negative, got {args.trial}")
+        try:
+            args.namespace = check_namespace(args.namespace)
+        except GraphError as error:
+            raise GraphError(f"--namespace: {error}") from None
         with tempfile.TemporaryDirectory(prefix="sdbc-graph-") as tmp:
             graph = ProcessGraph.from_graph_file(
-                graph_file, Path(tmp), args.record, args.log_dir
+                graph_file,
+                Path(tmp),
+                args.record,
+                args.log_dir,
+                namespace=args.namespace,
             )
-            return _run(graph, args, graph_file.settings)
+            return _run(graph, args, graph_file)
     except GraphError as error:
         print(f"sdbc-graph: error: {error}", file=sys.stderr)
         return 2
 
 
-def _run(
-    graph: ProcessGraph, args: argparse.Namespace, settings: LaunchSettings
-) -> int:
+def _run(graph: ProcessGraph, args: argparse.Namespace, graph_file: GraphFile) -> int:
     names = ", ".join(graph.processes)
-    print(f"sdbc-graph: starting {names}", file=sys.stderr)
+    where = f" in /{args.namespace}" if args.namespace else ""
+    print(f"sdbc-graph: starting {names}{where}", file=sys.stderr)
     status = 0
     graph.start()
     try:
         if args.trial:
-            status = run_trials(graph, args.trial, args.record is not None, settings)
+            status = run_trials(
+                graph, graph_file, args.trial, args.record is not None, args.namespace
+            )
         else:
             while not (ended := graph.exited()):
                 time.sleep(0.2)

@@ -6,12 +6,21 @@ parameter section as ``--params-file``:
 - the simulator (``simulator_node``);
 - the controllers of the task's N robots, ``robots_per_process`` per process
   (``controller_node --robots ...``; one process per robot by default);
-- the evolution node (``evolution_node``) if ``sdbc_graph.evolution`` is true;
+- with ``graphs: K`` (K > 1), K such simulator graphs, graph k in the namespace
+  ``graph_<k>``;
+- the evolution node (``evolution_node``) if ``sdbc_graph.evolution`` is true,
+  given the graphs' namespaces (``graph_namespaces``) when there are several;
 - the recorder (``recorder``) if a bag directory is given.
 
-:class:`ProcessGraph` starts them and stops them: SIGINT to every process,
-``shutdown_timeout`` seconds for each, SIGKILL for what is left, then the Fast DDS
-shared-memory files they left are removed (:mod:`sdbc_evolution.graph.shm`).
+With a namespace (``sdbc-graph --namespace NS``) every process is pushed into it
+(``-r __ns:=/NS``), and the parameters file's relative section keys are made to
+match there (:func:`~sdbc_evolution.graph.graph_file.namespaced_parameters`).
+
+:class:`ProcessGraph` starts them, each under :mod:`sdbc_evolution.graph.owned`
+(the node stops when the launcher dies, SIGKILL included), first removing the Fast
+DDS shared-memory files that dead processes left in ``/dev/shm``; and it stops
+them: SIGINT to every process, ``shutdown_timeout`` seconds for each, SIGKILL for
+what is left, then the files they left are removed (:mod:`sdbc_evolution.graph.shm`).
 """
 
 from __future__ import annotations
@@ -30,8 +39,15 @@ from typing import Any
 
 import yaml
 
-from sdbc_evolution.graph.graph_file import GraphError, GraphFile
-from sdbc_evolution.graph.shm import remove_orphaned_dds_files
+from sdbc_evolution.graph.graph_file import (
+    GraphError,
+    GraphFile,
+    check_namespace,
+    graph_namespaces,
+    join_namespace,
+    namespaced_parameters,
+)
+from sdbc_evolution.graph.shm import remove_orphaned_dds_files, remove_stale_dds_files
 
 PARAMETERS_FILE = "parameters.yaml"
 """The nodes' parameters as ``--params-file`` reads them, in the graph's work dir."""
@@ -40,11 +56,25 @@ SIMULATOR_MODULE = "sdbc_sim.nodes.simulator_node"
 CONTROLLER_MODULE = "sdbc_sim.nodes.controller_node"
 EVOLUTION_MODULE = "sdbc_evolution.nodes.evolution_node"
 RECORDER_MODULE = "sdbc_evolution.nodes.recorder_node"
-DEFAULT_RECORD_TOPICS = ("/task_state", "/markers")
-"""Topics recorded when the graph file lists none, besides every robot's sensors
-and command, and the evolution node's topics when it runs."""
-EVOLUTION_TOPICS = ("/generation_stats", "/best_genome")
+OWNED_MODULE = "sdbc_evolution.graph.owned"
+"""What every node process runs under: it stops the node when the launcher ends."""
+DEFAULT_RECORD_TOPICS = ("task_state", "markers")
+"""Topics of each simulator graph recorded when the graph file lists none, besides
+every robot's sensors and command, and the evolution node's topics when it runs."""
+EVOLUTION_TOPICS = ("generation_stats", "best_genome")
 """The evolution node's topics."""
+GRAPH_NAMESPACES_PARAMETER = "graph_namespaces"
+"""The evolution node's parameter naming the simulator graphs it evaluates on."""
+
+
+PROGRAMS = {
+    SIMULATOR_MODULE: ("sdbc_sim", "simulator_node"),
+    CONTROLLER_MODULE: ("sdbc_sim", "controller_node"),
+    EVOLUTION_MODULE: ("sdbc_evolution", "evolution_node"),
+    RECORDER_MODULE: ("sdbc_evolution", "recorder"),
+}
+"""Each node program's module and its (package, executable), as colcon installs
+it under ``lib/<package>`` (what a launch file's ``Node`` action names)."""
 
 
 @dataclass(frozen=True)
@@ -53,14 +83,53 @@ class NodeProcess:
 
     Attributes:
         name: Label in logs and messages ("simulator", "controllers 0-1").
-        argv: The command line.
+        module: The node program's module, run with this interpreter.
+        args: Its own arguments (before ``--ros-args``).
+        namespace: The namespace it is pushed into ("" for none).
+        params_file: Its ``--params-file``.
+        parameters: Parameter overrides after the file (``-p name:=value``,
+            values as YAML).
         stops_last: Stopped only once every other process has ended (the
             recorder: it must take what the others sent as they stopped).
     """
 
     name: str
-    argv: tuple[str, ...]
+    module: str
+    args: tuple[str, ...] = ()
+    namespace: str = ""
+    params_file: Path | None = None
+    parameters: tuple[tuple[str, str], ...] = ()
     stops_last: bool = False
+
+    @property
+    def program(self) -> tuple[str, str]:
+        """Its (package, executable)."""
+        return PROGRAMS[self.module]
+
+    @property
+    def ros_arguments(self) -> tuple[str, ...]:
+        """What follows ``--ros-args``."""
+        remap = ("-r", f"__ns:=/{self.namespace}") if self.namespace else ()
+        params = ("--params-file", str(self.params_file)) if self.params_file else ()
+        overrides = tuple(a for n, v in self.parameters for a in ("-p", f"{n}:={v}"))
+        return (*remap, *overrides, *params)
+
+    @property
+    def argv(self) -> tuple[str, ...]:
+        """The command line, as a user would type it."""
+        ros = self.ros_arguments
+        return module_command(
+            self.module, *self.args, *(("--ros-args", *ros) if ros else ())
+        )
+
+    def owned_argv(self, owner: int, grace: float) -> tuple[str, ...]:
+        """The command line that runs it under :mod:`sdbc_evolution.graph.owned`:
+        it stops when the process ``owner`` ends (SIGINT, then an exit after
+        ``grace`` seconds)."""
+        return (
+            *module_command(OWNED_MODULE, str(owner), f"{grace:g}"),
+            *self.argv[2:],
+        )
 
 
 def module_command(module: str, *args: str) -> tuple[str, ...]:
@@ -85,52 +154,98 @@ def child_environment(base: Mapping[str, str] | None = None) -> dict[str, str]:
 
 
 def graph_processes(
-    graph: GraphFile, params_file: Path, record: Path | None = None
+    graph: GraphFile,
+    params_file: Path,
+    record: Path | None = None,
+    namespace: str = "",
 ) -> list[NodeProcess]:
-    """The processes that make up ``graph``, each given ``params_file``."""
+    """The processes that make up ``graph``, each given ``params_file``, all in
+    ``namespace`` ("" for none)."""
     from sdbc_sim.nodes.interface import COMMAND_TOPIC, SENSORS_TOPIC, robot_topic
     from sdbc_sim.tasks import make_task
 
-    ros = ("--ros-args", "--params-file", str(params_file))
+    namespace = check_namespace(namespace)
     try:
         n_robots = make_task(graph.task, **graph.task_config).layout.n_controlled
     except (TypeError, ValueError) as error:
         raise GraphError(f"graph file: {error}") from None
-    processes = [NodeProcess("simulator", module_command(SIMULATOR_MODULE, *ros))]
-    per = graph.settings.robots_per_process
-    for first in range(0, n_robots, per):
-        robots = [str(i) for i in range(first, min(first + per, n_robots))]
-        label = robots[0] if len(robots) == 1 else f"{robots[0]}-{robots[-1]}"
-        processes.append(
-            NodeProcess(
-                f"controller {label}",
-                module_command(CONTROLLER_MODULE, "--robots", *robots, *ros),
-            )
+
+    def node(name: str, module: str, ns: str, *args: str, **more: Any) -> NodeProcess:
+        return NodeProcess(
+            name, module, args, namespace=ns, params_file=params_file, **more
         )
+
+    subgraphs = graph_namespaces(graph.settings)
+    processes = []
+    for sub in subgraphs:
+        ns = join_namespace(namespace, sub)
+        label = f"{sub} " if sub else ""
+        processes.append(node(f"{label}simulator", SIMULATOR_MODULE, ns))
+        per = graph.settings.robots_per_process
+        for first in range(0, n_robots, per):
+            robots = [str(i) for i in range(first, min(first + per, n_robots))]
+            which = robots[0] if len(robots) == 1 else f"{robots[0]}-{robots[-1]}"
+            processes.append(
+                node(
+                    f"{label}controller {which}",
+                    CONTROLLER_MODULE,
+                    ns,
+                    "--robots",
+                    *robots,
+                )
+            )
     if graph.settings.evolution:
+        several = (
+            ((GRAPH_NAMESPACES_PARAMETER, f"[{', '.join(subgraphs)}]"),)
+            if len(subgraphs) > 1
+            else ()
+        )
         processes.append(
-            NodeProcess("evolution", module_command(EVOLUTION_MODULE, *ros))
+            node("evolution", EVOLUTION_MODULE, namespace, parameters=several)
         )
     if record is not None:
-        topics = list(graph.settings.record_topics) or [
-            *DEFAULT_RECORD_TOPICS,
-            *(EVOLUTION_TOPICS if graph.settings.evolution else ()),
-            *(
-                "/" + robot_topic(i, t)
-                for i in range(n_robots)
-                for t in (SENSORS_TOPIC, COMMAND_TOPIC)
-            ),
+        # Resolved here, so that the bag names the topics as `ros2 topic list` does.
+        topics = [
+            t if t.startswith("/") else "/" + join_namespace(namespace, t)
+            for t in graph.settings.record_topics
+        ] or [
+            "/" + join_namespace(namespace, sub, topic)
+            for sub in subgraphs
+            for topic in (
+                *DEFAULT_RECORD_TOPICS,
+                *(
+                    robot_topic(i, t)
+                    for i in range(n_robots)
+                    for t in (SENSORS_TOPIC, COMMAND_TOPIC)
+                ),
+            )
+        ] + [
+            "/" + join_namespace(namespace, topic)
+            for topic in (EVOLUTION_TOPICS if graph.settings.evolution else ())
         ]
         processes.append(
-            NodeProcess(
+            node(
                 "recorder",
-                module_command(
-                    RECORDER_MODULE, "--output", str(record), "--topics", *topics, *ros
-                ),
+                RECORDER_MODULE,
+                namespace,
+                "--output",
+                str(record),
+                "--topics",
+                *topics,
                 stops_last=True,
             )
         )
     return processes
+
+
+def write_parameters(graph_file: GraphFile, path: Path, namespace: str = "") -> None:
+    """Writes the nodes' parameters of ``graph_file`` to ``path`` (a
+    ``--params-file``), with its section keys made to match in ``namespace``."""
+    path.write_text(
+        yaml.safe_dump(
+            namespaced_parameters(graph_file.parameters, check_namespace(namespace))
+        )
+    )
 
 
 class ProcessGraph:
@@ -170,13 +285,15 @@ class ProcessGraph:
         record: Path | None = None,
         log_dir: Path | None = None,
         env: Mapping[str, str] | None = None,
+        namespace: str = "",
     ) -> ProcessGraph:
-        """The processes of ``graph_file``, not started yet; the nodes' parameters
-        go to ``<work_dir>/parameters.yaml``, which must outlive the graph."""
+        """The processes of ``graph_file`` in ``namespace``, not started yet; the
+        nodes' parameters go to ``<work_dir>/parameters.yaml``, which must outlive
+        the graph."""
         params_file = Path(work_dir) / PARAMETERS_FILE
-        params_file.write_text(yaml.safe_dump(graph_file.parameters))
+        write_parameters(graph_file, params_file, namespace)
         return cls(
-            graph_processes(graph_file, params_file, record),
+            graph_processes(graph_file, params_file, record, namespace),
             graph_file.settings.shutdown_timeout,
             log_dir,
             env,
@@ -189,7 +306,10 @@ class ProcessGraph:
         return self.log_dir / (name.replace(" ", "_") + ".log")
 
     def start(self, name: str | None = None) -> None:
-        """Starts every process, or only ``name`` (again, after it ended)."""
+        """Starts every process, or only ``name`` (again, after it ended); first
+        removes the Fast DDS files in /dev/shm that dead processes left (a graph
+        killed earlier, or one of this graph's processes killed since)."""
+        remove_stale_dds_files()
         for process in (
             self.processes.values() if name is None else [self.processes[name]]
         ):
@@ -205,12 +325,13 @@ class ProcessGraph:
                 output = path.open("ab")
                 self._logs.append(output)
             self.running[process.name] = subprocess.Popen(
-                process.argv,
+                process.owned_argv(os.getpid(), self.shutdown_timeout),
                 env=self.env,
                 stdout=output,
                 stderr=subprocess.STDOUT if output is not None else None,
                 # Ctrl-C in a terminal reaches the launcher alone; it then stops
-                # the nodes in order.
+                # the nodes in order. Should it die first, each node stops itself
+                # (graph/owned.py).
                 start_new_session=True,
             )
 

@@ -16,6 +16,9 @@ Where the trials run is the ``evaluator`` parameter:
   LiveEvaluator`): for each genome the node sets the controllers' ``genome``
   parameters, asks the simulator for the trials, and builds the SDBC vectors from
   the ``task_state`` topic. Same results as ``local``, to round-off; much slower.
+  With ``graph_namespaces`` naming several simulator graphs (``sdbc-graph`` with
+  ``graphs: K`` starts them in ``graph_0`` ... and sets it), each generation's
+  genomes are spread over them; the results are those of one graph.
 
 The task may be another system's (a task this project's engine does not have,
 run by another simulator or by robots, see the README's contract): the node then
@@ -52,8 +55,7 @@ from typing import Any, TypeVar
 import numpy as np
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException
-from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sdbc_sim.nodes.interface import (
     BEST_GENOME_TOPIC,
     DISPLAY_QOS,
@@ -63,6 +65,7 @@ from sdbc_sim.nodes.interface import (
     REPLAY_BEST_SERVICE,
     parse_task_config,
 )
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import available_tasks, find_task
@@ -97,7 +100,7 @@ STOP_WAIT = 5.0
 """Seconds the experiment thread gets to stop after Ctrl-C."""
 
 
-class EvolutionNode(Node):
+class EvolutionNode(CheckedNode):
     """Runs one experiment and publishes its progress.
 
     Parameters (ROS), all read-only:
@@ -113,6 +116,9 @@ class EvolutionNode(Node):
         replay_best: Replay each generation's best live on the graph.
         replay_seed: Seed of the replayed trials.
         graph_timeout: Seconds to wait for the live graph.
+        graph_namespaces: Namespaces of the simulator graphs to evaluate on,
+            relative to the node's (unset: the graph in the node's own
+            namespace).
         robots, genome_length: For a task that is not this project's: the
             number of robots (controllers) and of genes (0: the task's).
         exit_when_done: Leave when the run is complete (else keep serving
@@ -150,6 +156,7 @@ class EvolutionNode(Node):
             "graph_timeout", DEFAULT_GRAPH_TIMEOUT, "Seconds to wait for the graph"
         )
         self.exit_when_done = p("exit_when_done", True, "Leave when the run is done")
+        self.graph_namespaces = self._declare_namespaces()
         self.robots = p(
             "robots", 0, "Robots of another system's task (0: the task's)", minimum=0
         )
@@ -197,10 +204,11 @@ class EvolutionNode(Node):
         self.task = self._build_task()
         self.stop = threading.Event()
         self.finished = threading.Event()
+        self.complete = False  # every generation done (not only stopped)
         self.failure: str | None = None
         self.best_genome: np.ndarray | None = None
         self.best_generation = -1
-        self._client: GraphClient | None = None
+        self._graph_clients: list[GraphClient] = []
         self._client_lock = threading.Lock()
         self._stats = self.create_publisher(
             GenerationStats, GENERATION_STATS_TOPIC, DISPLAY_QOS
@@ -224,6 +232,32 @@ class EvolutionNode(Node):
                 IntegerRange(from_value=minimum, to_value=2**62)
             ]
         return self.declare_parameter(name, default, descriptor).value
+
+    def _declare_namespaces(self) -> tuple[str, ...]:
+        """The ``graph_namespaces`` parameter, checked: distinct ROS 2 names."""
+        from sdbc_evolution.graph.graph_file import GraphError, check_namespace
+
+        descriptor = ParameterDescriptor(
+            description=(
+                "Namespaces of the simulator graphs to evaluate on (unset: the "
+                "node's own)"
+            ),
+            read_only=True,
+        )
+        value = self.declare_parameter(
+            "graph_namespaces", Parameter.Type.STRING_ARRAY, descriptor
+        ).value
+        if value is None:
+            return ("",)
+        try:
+            names = tuple(check_namespace(str(ns)) for ns in value)
+        except GraphError as error:
+            raise ValueError(f"parameter graph_namespaces: {error}") from None
+        if not names or len(set(names)) != len(names):
+            raise ValueError(
+                f"parameter graph_namespaces: need distinct namespaces, got {value}"
+            )
+        return names
 
     def _build_task(self) -> Task | None:
         """This project's task, checked against ``robots`` and ``genome_length``;
@@ -296,32 +330,48 @@ class EvolutionNode(Node):
         return info
 
     def graph_client(self) -> GraphClient:
-        """The client of the live graph, created and connected on first use.
+        """The client of the (first) live graph, connected on first use; replays
+        and a foreign task's first trial run there.
 
         Raises:
             GraphClientError: If the graph does not come up in time, or runs
                 another task.
         """
+        return self.graph_clients()[0]
+
+    def graph_clients(self) -> list[GraphClient]:
+        """A client per graph of ``graph_namespaces``, created and connected on
+        first use.
+
+        Raises:
+            GraphClientError: If a graph does not come up in time, or runs
+                another task.
+        """
         with self._client_lock:
-            if self._client is None:
-                client = GraphClient(
-                    self,
-                    self.task,
-                    self.spec.name,
-                    dict(self.spec.overrides),
-                    timeout=self.graph_timeout,
-                    stop=self.stop,
-                    n_robots=self.robots or None,
-                    physics=self.spec.physics,
-                )
-                client.wait_for_graph()
-                self._client = client
-            return self._client
+            if not self._graph_clients:
+                clients = [
+                    GraphClient(
+                        self,
+                        self.task,
+                        self.spec.name,
+                        dict(self.spec.overrides),
+                        timeout=self.graph_timeout,
+                        stop=self.stop,
+                        n_robots=self.robots or None,
+                        physics=self.spec.physics,
+                        namespace=namespace,
+                    )
+                    for namespace in self.graph_namespaces
+                ]
+                for client in clients:
+                    client.wait_for_graph()
+                self._graph_clients = clients
+            return self._graph_clients
 
     def make_evaluator(self) -> Evaluator:
         """The evaluator the ``evaluator`` parameter names."""
         if self.evaluator_name == "live":
-            return LiveEvaluator(self.spec, self.graph_client())
+            return LiveEvaluator(self.spec, self.graph_clients())
         return make_evaluator(self.spec, workers=self.workers)
 
     def run(self) -> None:
@@ -351,7 +401,8 @@ class EvolutionNode(Node):
                         self._publish(experiment, record, population, started)
                         if self.replay_after_generation:
                             self._replay_or_stop_replaying()
-            if not self.stop.is_set():
+                    self.complete = experiment.finished
+            if self.complete:
                 self.get_logger().info(f"run complete: results in {self.out}")
         except Exception as err:  # the thread's failure must reach the exit status
             if not self.stop.is_set():
@@ -444,23 +495,34 @@ class EvolutionNode(Node):
 
 def _run_experiment(startup: Startup, nodes: Sequence[EvolutionNode]) -> int:
     """Runs the experiment in a thread of its own while the executor serves the
-    replay service and the graph client's answers."""
+    replay service and the graph client's answers, until it is done or Ctrl-C or
+    SIGTERM asks to stop (the context stays up meanwhile: the experiment thread
+    may still be publishing)."""
     node = nodes[0]
     thread = threading.Thread(target=node.run, name="experiment", daemon=True)
     thread.start()
+    requested = startup.stop.requested
     try:
         while not (node.finished.is_set() and node.exit_when_done):
+            if requested.is_set():
+                break
             startup.executor.spin_once(timeout_sec=0.2)
-        return 1 if node.failure else 0
-    except (KeyboardInterrupt, ExternalShutdownException):
+    finally:
         node.stop.set()
+        thread.join(STOP_WAIT)
+    if node.failure:
+        return 1
+    if node.complete:
+        if requested.is_set():
+            print(
+                f"evolution_node: run complete: results in {node.out}", file=sys.stderr
+            )
+    else:
         print(
             f"evolution_node: interrupted; resume with resume:=true output:={node.out}",
             file=sys.stderr,
         )
-        return 0
-    finally:
-        thread.join(STOP_WAIT)
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -469,8 +531,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             name="evolution_node",
             make_nodes=lambda startup: [EvolutionNode()],
             serve=_run_experiment,
-            threads=3,
-            signals="rclpy",
+            # The experiment's own threads wait; these serve the graphs' answers.
+            threads=4,
         ),
         argv,
     )

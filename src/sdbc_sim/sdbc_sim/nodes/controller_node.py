@@ -21,7 +21,11 @@ Usage::
     controller_node --robots 0 1 2 3 --ros-args --params-file graph_params.yaml
 
 With ``--robots`` several controllers (one node per robot, each in its robot's
-namespace) share one process and one executor.
+namespace) share one process and one executor; a pushed namespace
+(``-r __ns:=/g1``, or a launch file's ``namespace``) goes above each robot's:
+``/g1/robot_2/controller``. Without ``--robots`` the node is robot 0's,
+``robot_0/controller``, unless ``__ns`` names its namespace whole, as in the
+first example.
 
 Ctrl-C and SIGTERM stop the node once its answers in flight have been
 acknowledged by their readers (at most a few seconds), so that a recorder gets
@@ -46,7 +50,6 @@ from rclpy.executors import (
     Executor,
 )
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from sdbc_msgs.msg import RobotCommand, SensorReadings
@@ -58,8 +61,10 @@ from sdbc_sim.nodes.interface import (
     LOCKSTEP_QOS,
     SENSORS_TOPIC,
     build_task,
+    pushed_namespace,
     robot_namespace,
 )
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.shutdown import StopSignals
 from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 
@@ -91,7 +96,7 @@ def genome_problem(values: Sequence[float], shape: NetworkShape) -> str | None:
     return None
 
 
-class ControllerNode(Node):
+class ControllerNode(CheckedNode):
     """The controller of one robot.
 
     Parameters (ROS):
@@ -100,16 +105,33 @@ class ControllerNode(Node):
         genome: The network's weights (double array), checked when set.
 
     Args:
-        robot: Index of the robot, used for its namespace ``robot_<i>`` (a
-            ``__ns`` remapping on the command line takes precedence).
+        robot: Index of the robot, used for its namespace ``robot_<i>``.
+        namespace: The namespace above the robot's (``/g1`` gives
+            ``/g1/robot_<i>``), kept whatever ``__ns`` remapping the command line
+            has; None: ``robot_<i>``, which such a remapping replaces.
         **kwargs: Passed on to :class:`rclpy.node.Node`.
 
     Raises:
         ValueError: A bad task, task_config or start-up genome, naming it.
     """
 
-    def __init__(self, robot: int = 0, **kwargs: Any) -> None:
-        super().__init__(CONTROLLER_NODE, namespace=robot_namespace(robot), **kwargs)
+    def __init__(
+        self, robot: int = 0, namespace: str | None = None, **kwargs: Any
+    ) -> None:
+        if namespace is None:
+            super().__init__(
+                CONTROLLER_NODE, namespace=robot_namespace(robot), **kwargs
+            )
+        else:
+            # A node's own arguments come before the process's in rcl's
+            # remapping, so this rule wins over the pushed ``__ns``.
+            own = f"{namespace.rstrip('/')}/{robot_namespace(robot)}"
+            super().__init__(
+                CONTROLLER_NODE,
+                namespace=own,
+                cli_args=["--ros-args", "-r", f"__ns:={own}"],
+                **kwargs,
+            )
         task_name = self.declare_parameter(
             "task",
             DEFAULT_TASK,
@@ -229,21 +251,28 @@ def build_parser() -> argparse.ArgumentParser:
         "--robots",
         type=int,
         nargs="+",
-        default=[0],
         metavar="I",
-        help="robot indices served by this process, one node each (default: 0)",
+        help=(
+            "robot indices served by this process, one node each in robot_<i> "
+            "under any pushed namespace (default: robot 0, in robot_0 or the "
+            "namespace that __ns names)"
+        ),
     )
     return parser
 
 
 def _make_nodes(startup: Startup) -> Iterator[ControllerNode]:
     robots = startup.args.robots
+    if robots is None:
+        yield ControllerNode(0)
+        return
     if len(set(robots)) != len(robots) or min(robots) < 0:
         raise ValueError(
             f"--robots must be distinct non-negative indices, got {robots}"
         )
+    pushed = pushed_namespace(startup.ros_args, CONTROLLER_NODE)
     for robot in robots:
-        yield ControllerNode(robot)
+        yield ControllerNode(robot, namespace=pushed)
 
 
 def _serve(startup: Startup, nodes: Sequence[ControllerNode]) -> int:

@@ -4,7 +4,11 @@ parameters that every node of a graph shares.
 Names are relative, so a whole graph can be pushed into a namespace with
 ``--ros-args -r __ns:=/team_a``. Robot i's topics live in the namespace
 ``robot_<i>``: the simulator publishes ``robot_<i>/sensors`` and subscribes to
-``robot_<i>/command``; robot i's controller node is ``robot_<i>/controller``.
+``robot_<i>/command``; robot i's controller node is ``robot_<i>/controller``. A
+process serving several robots (``controller_node --robots 0 1 2 3``) keeps each
+robot's namespace under the pushed one (``/team_a/robot_2/controller``): rcl's
+``__ns`` remapping would otherwise replace every node's namespace by the same one
+(:func:`pushed_namespace`).
 
 QoS, chosen on purpose:
 
@@ -149,6 +153,62 @@ def build_task(name: str, task_config: str) -> Task:
             bad value, each named.
     """
     return make_task(name, **parse_task_config(task_config))
+
+
+_VALUED_ROS_FLAGS = frozenset(
+    {
+        "-p",
+        "--param",
+        "--params-file",
+        "-e",
+        "--enclave",
+        "--log-level",
+        "--log-config-file",
+        "--log-file-name",
+    }
+)
+"""rcl's flags inside ``--ros-args`` that take a value, other than ``-r``."""
+
+
+def ros_flag_values(argv: Sequence[str], flags: frozenset[str]) -> list[str]:
+    """The values given to ``flags`` inside the ``--ros-args`` sections of
+    ``argv``, in order (rcl's grammar: a section runs from ``--ros-args`` to
+    ``--`` or the end; every flag but the boolean ones takes the next word)."""
+    values: list[str] = []
+    inside = False
+    words = iter(argv)
+    for word in words:
+        if not inside:
+            inside = word == "--ros-args"
+        elif word == "--":
+            inside = False
+        elif word == "--ros-args":
+            continue
+        elif word in flags:
+            values.append(next(words, ""))
+        elif word in _VALUED_ROS_FLAGS or word in ("-r", "--remap"):
+            next(words, None)
+    return values
+
+
+def pushed_namespace(argv: Sequence[str], node_name: str) -> str:
+    """The namespace that the command line's ``__ns`` remapping gives a node named
+    ``node_name``, or ``""`` without one.
+
+    rcl applies the first rule that matches, ``__ns:=NS`` or ``NAME:__ns:=NS``
+    for the node's name; a launch file's ``namespace`` arrives as the former.
+    """
+    for rule in ros_flag_values(argv, frozenset({"-r", "--remap"})):
+        target, _, namespace = rule.partition(":=")
+        node, _, key = target.rpartition(":")
+        if key == "__ns" and node in ("", node_name):
+            namespace = namespace.rstrip("/")
+            return (
+                namespace
+                if not namespace or namespace.startswith("/")
+                else ("/" + namespace)
+            )
+    return ""
 
 
 class UsageError(ValueError):

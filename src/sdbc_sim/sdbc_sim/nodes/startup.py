@@ -6,6 +6,9 @@ command line into ROS arguments and its own, start rclpy, make its node(s) on an
 executor, serve until it is done or stopped, and leave cleanly. A
 :class:`NodeProgram` says what differs; :func:`run_node_program` does the rest.
 
+Each node's start-up overrides are checked once it is made: a name it does not
+declare ends the program before any work (:mod:`sdbc_sim.nodes.parameters`).
+
 Exit status: 0 done, 2 bad arguments or parameters (the message names them), or
 what the program's ``serve`` returns.
 """
@@ -13,9 +16,11 @@ what the program's ``serve`` returns.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Generic, Literal, TypeVar
 
 import rclpy
@@ -29,9 +34,14 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from sdbc_sim.nodes.interface import UsageError, split_ros_arguments
+from sdbc_sim.nodes.parameters import UndeclaredParameters, check_overrides
 from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
 
 NodeT = TypeVar("NodeT", bound=Node)
+
+LOOPBACK_PROFILE = "fastdds_localhost.xml"
+"""The name of the project's Fast DDS profile (``scripts/fastdds_localhost.xml``),
+which puts every socket on loopback."""
 
 SIGNAL_POLL = 0.2
 """Seconds :func:`spin_until_stopped` lets the executor wait at most, so that
@@ -54,11 +64,14 @@ class Startup:
         args: The program's own arguments (outside ``--ros-args``), parsed; empty
             for a program without a parser.
         executor: The executor the nodes are added to.
+        stop_signals: The stop request of a program with ``signals="stop"``.
+        ros_args: The whole command line as rclpy was given it.
     """
 
     args: argparse.Namespace
     executor: Executor
     stop_signals: StopSignals | None
+    ros_args: tuple[str, ...] = ()
 
     @property
     def stop(self) -> StopSignals:
@@ -99,8 +112,35 @@ class NodeProgram(Generic[NodeT]):
     close: Callable[[Sequence[NodeT]], None] | None = None
 
 
+def keep_dds_on_loopback(environ: dict[str, str] | None = None) -> None:
+    """Leaves discovery to the project's loopback profile when it is in force.
+
+    With ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, rmw_fastrtps adds a UDP
+    transport of its own, on every interface, beside the profile's loopback-only
+    ones; ``SYSTEM_DEFAULT`` keeps the profile's alone (tests/test_sockets.py).
+    ``scripts/env.sh`` does this when it is sourced; this covers a ``LOCALHOST``
+    exported after it. Must run before rclpy is initialised (rcl reads the
+    variable then).
+
+    Args:
+        environ: The environment to adjust; default: this process's.
+    """
+    env: Any = os.environ if environ is None else environ
+    profiles = [
+        env[name]
+        for name in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+        if env.get(name)
+    ]
+    on_profile = bool(profiles) and all(
+        Path(p).name == LOOPBACK_PROFILE for p in profiles
+    )
+    if on_profile and env.get("ROS_AUTOMATIC_DISCOVERY_RANGE") == "LOCALHOST":
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
+
+
 def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) -> int:
     """Runs ``program`` with the command line ``argv`` (``sys.argv`` if None)."""
+    keep_dds_on_loopback()
     try:
         ros_argv, plain = split_ros_arguments(
             program.name, argv, allow_plain=program.parser is not None
@@ -131,13 +171,17 @@ def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) ->
         if program.threads > 1
         else SingleThreadedExecutor()
     )
-    startup = Startup(args, executor, stop)
+    startup = Startup(args, executor, stop, tuple(ros_argv))
     nodes: list[NodeT] = []
     try:
         for node in program.make_nodes(startup):
             nodes.append(node)
+            check_overrides(node, ros_argv)
             executor.add_node(node)
         return program.serve(startup, nodes)
+    except UndeclaredParameters as error:
+        print(f"{program.name}: error: {error}", file=sys.stderr)
+        return 2
     except program.errors as error:
         print(f"{program.name}: error: {error}", file=sys.stderr)
         return 2

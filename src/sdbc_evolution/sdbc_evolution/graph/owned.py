@@ -1,0 +1,70 @@
+"""Running a node program so that it ends when the launcher that started it ends.
+
+The launcher starts every node in a session of its own (so that Ctrl-C in the
+terminal reaches the launcher alone, which then stops the nodes in order), so
+nothing would stop the nodes if the launcher died without stopping them (SIGKILL,
+an out-of-memory kill). Each node therefore runs under this module, which watches
+the launcher as ``sdbc-evolve``'s workers watch their owner
+(:func:`sdbc_evolution.run.processes.watch_owner`: a pidfd, readable once the
+process has ended), but stops the node the way the launcher would: SIGINT first,
+so that the recorder closes its bag and Fast DDS removes its shared-memory files,
+then, after ``grace`` seconds, an immediate exit.
+
+Usage (what :mod:`sdbc_evolution.graph.processes` runs)::
+
+    python -m sdbc_evolution.graph.owned OWNER_PID GRACE MODULE [ARGS...]
+"""
+
+from __future__ import annotations
+
+import os
+import runpy
+import select
+import signal
+import sys
+import threading
+import time
+from collections.abc import Sequence
+
+from sdbc_evolution.run.processes import ORPHAN_EXIT, OWNER_POLL_SECONDS
+
+
+def watch_launcher(owner: int, grace: float) -> None:
+    """Stops this process when the process ``owner`` ends: SIGINT at once, an
+    exit with :data:`~sdbc_evolution.run.processes.ORPHAN_EXIT` ``grace``
+    seconds later if it is still running."""
+    try:
+        fd: int | None = os.pidfd_open(owner)
+    except ProcessLookupError:
+        os._exit(ORPHAN_EXIT)  # gone before we looked
+    except (AttributeError, OSError):
+        fd = None  # no pidfds (not Linux >= 5.3): poll instead
+    if os.getppid() != owner:
+        # The launcher died before the pidfd was open (its pid may be reused).
+        os._exit(ORPHAN_EXIT)
+
+    def wait() -> None:
+        if fd is not None:
+            select.select([fd], [], [])
+        else:
+            while os.getppid() == owner:
+                time.sleep(OWNER_POLL_SECONDS)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(grace)
+        os._exit(ORPHAN_EXIT)
+
+    threading.Thread(target=wait, name="watch-launcher", daemon=True).start()
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) < 3:
+        sys.exit("usage: python -m sdbc_evolution.graph.owned OWNER GRACE MODULE ...")
+    owner, grace, module, rest = int(args[0]), float(args[1]), args[2], args[3:]
+    watch_launcher(owner, grace)
+    sys.argv = [module, *rest]
+    runpy.run_module(module, run_name="__main__", alter_sys=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,164 @@
+"""A graph's node processes end with their launcher, however it ends, and what dead
+DDS processes left in /dev/shm is cleared when a graph starts."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+pytestmark = pytest.mark.ros
+
+ROOT = Path(__file__).resolve().parents[3]
+OWNED = "sdbc_evolution.graph.owned"
+GENOME = [0.1] * 108
+"""Any genome of gate escape's 11-7-3 network."""
+
+
+def _children_of(launcher: int) -> list[int]:
+    """Pids of the node processes that ``launcher`` started (they run under
+    graph/owned.py, which names the launcher's pid first)."""
+    pids = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            argv = (proc / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if OWNED.encode() in argv:
+            at = argv.index(OWNED.encode())
+            if argv[at + 1 : at + 2] == [str(launcher).encode()]:
+                pids.append(int(proc.name))
+    return pids
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has ended; only its parent's wait is missing
+
+
+def _in_dds(pid: int) -> bool:
+    try:
+        return "/dev/shm/fastrtps_" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+def _graph_file(tmp_path: Path) -> Path:
+    from sdbc_evolution.graph.graph_file import trial_graph
+
+    path = tmp_path / "graph.yaml"
+    path.write_text(yaml.safe_dump(trial_graph("gate_escape", GENOME)))
+    return path
+
+
+def test_every_node_ends_when_the_launcher_is_killed(tmp_path):
+    env = {
+        **os.environ,
+        "ROS_HOME": str(tmp_path / "ros_home"),
+        "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
+    }
+    launcher = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sdbc_evolution.graph.launch",
+            str(_graph_file(tmp_path)),
+            "--log-dir",
+            str(tmp_path / "logs"),
+        ],
+        env=env,
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        nodes: list[int] = []
+        # The simulator and four controllers, each with its DDS participant up
+        # (it maps its shared-memory segment).
+        while len(nodes) < 5 or not all(_in_dds(p) for p in nodes):
+            assert launcher.poll() is None, launcher.communicate()[1]
+            assert time.monotonic() < deadline, f"nodes seen: {nodes}"
+            time.sleep(0.5)
+            nodes = _children_of(launcher.pid)
+        time.sleep(2.0)  # into their executors' spin
+        launcher.send_signal(signal.SIGKILL)
+        launcher.wait()
+        deadline = time.monotonic() + 30.0
+        while (alive := [p for p in nodes if _alive(p)]) and (
+            time.monotonic() < deadline
+        ):
+            time.sleep(0.2)
+        assert alive == [], f"node processes left running: {alive}"
+    finally:
+        for pid in _children_of(launcher.pid):
+            os.kill(pid, signal.SIGKILL)
+        if launcher.poll() is None:
+            launcher.kill()
+            launcher.wait()
+
+
+def test_a_graph_start_removes_what_killed_dds_processes_left(tmp_path):
+    from sdbc_evolution.graph import shm
+    from sdbc_evolution.graph.graph_file import load_graph_file
+    from sdbc_evolution.graph.processes import ProcessGraph, child_environment
+
+    before = set(os.listdir(shm.SHM_DIR))
+    victim = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import rclpy, time\n"
+            "from rclpy.node import Node\n"
+            "from std_msgs.msg import String\n"
+            "rclpy.init()\n"
+            "node = Node('victim')\n"
+            "node.create_publisher(String, 'victim_topic', 10)\n"
+            "print('up', flush=True)\n"
+            "time.sleep(600)\n",
+        ],
+        env={**os.environ, "ROS_HOME": str(tmp_path / "ros_home")},
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert victim.stdout is not None and victim.stdout.readline() == "up\n"
+        time.sleep(1.0)
+    finally:
+        victim.kill()
+        victim.wait()
+    left = {
+        name
+        for name in set(os.listdir(shm.SHM_DIR)) - before
+        if name.startswith(shm.DDS_FILE_PREFIXES)
+    }
+    assert left, "a SIGKILLed DDS process left nothing in /dev/shm to clear"
+    time.sleep(shm.STALE_MIN_AGE + 0.5)  # a start leaves the youngest files alone
+
+    env = child_environment()
+    env["ROS_HOME"] = str(tmp_path / "ros_home")
+    graph = ProcessGraph.from_graph_file(
+        load_graph_file(_graph_file(tmp_path)),
+        tmp_path,
+        log_dir=tmp_path / "logs",
+        env=env,
+    )
+    graph.start()
+    try:
+        remaining = left & set(os.listdir(shm.SHM_DIR))
+    finally:
+        codes = graph.stop()
+    assert remaining == set()
+    # Stopped while still starting up, but by SIGINT, not SIGKILL.
+    assert -signal.SIGKILL not in codes.values(), codes
