@@ -28,7 +28,9 @@ def site_links(text: str) -> str:
     ``x.md``, a tutorial's README its page, CONTRIBUTING.md its page, and a link
     to a root file that is no page becomes its name in backticks."""
     text = re.sub(r"\]\(docs/", "](", text)
-    text = re.sub(r"\]\(examples/(\d\d_[\w]+)/README\.md\)", r"](tutorials/\1.md)", text)
+    text = re.sub(
+        r"\]\(examples/(\d\d_[\w]+)/README\.md\)", r"](tutorials/\1.md)", text
+    )
     text = text.replace("](CONTRIBUTING.md)", "](contributing.md)")
     for name in ROOT_FILES:
         text = re.sub(rf"\[([^\]]+)\]\({re.escape(name)}\)", rf"\1 (`{name}`)", text)
