@@ -1,5 +1,6 @@
 """Evolution through another system's simulator: the evolution node drives a
-minimal simulator written against the README's contract alone (not sdbc_sim's),
+minimal simulator written against the contract alone (not sdbc_sim's; tutorial
+examples/06_ros2_system),
 learns the task from its messages, and the same run gives the same result twice."""
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import yaml
 
 pytestmark = pytest.mark.ros
 
-HERE = Path(__file__).parent
+HERE = Path(__file__).resolve().parents[3] / "examples" / "06_ros2_system"
 EXPERIMENT = {
     "task": "point_chase",
     "treatment": "ns-sd+",
@@ -32,7 +33,7 @@ RUN_TIMEOUT = 600.0
 
 def evolve_through_the_outside_simulator(tmp_path: Path, name: str) -> Path:
     sys.path.insert(0, str(HERE))
-    from outside_simulator import GENOME_LENGTH, ROBOTS
+    from point_chase_simulator import GENOME_LENGTH, ROBOTS
 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     experiment = tmp_path / "experiment.yaml"
@@ -40,7 +41,7 @@ def evolve_through_the_outside_simulator(tmp_path: Path, name: str) -> Path:
     out = tmp_path / name
     log = (tmp_path / f"{name}-simulator.log").open("w")
     simulator = subprocess.Popen(
-        [sys.executable, str(HERE / "outside_simulator.py")],
+        [sys.executable, str(HERE / "point_chase_simulator.py")],
         env=env,
         stdout=log,
         stderr=subprocess.STDOUT,

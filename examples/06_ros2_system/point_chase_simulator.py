@@ -1,6 +1,7 @@
-"""A minimal simulator of another system, written against the contract alone (the
-README's "Evolution through another simulator"), with rclpy and sdbc_msgs and
-nothing of sdbc_sim: point chase, where ROBOTS point robots chase a static target.
+"""Tutorial 06: a simulator of another system, written against the evolution
+node's contract alone (docs/ros2.md, "Evolution through another simulator"), with
+rclpy and sdbc_msgs and nothing of sdbc_sim: point chase, where ROBOTS point robots
+chase a static target.
 
 - Node ``simulator``, parameters ``task`` and ``task_config``, service
   ``run_trial`` (sdbc_msgs/srv/RunTrial): runs a trial of the seed with the
@@ -11,7 +12,7 @@ nothing of sdbc_sim: point chase, where ROBOTS point robots chase a static targe
   the process and the simulator asks each controller for its action.
 
 A trial is a function of (seed, genomes): the evolution node gets the same results
-twice. Run as a script; Ctrl-C stops it.
+twice. Run as a script; Ctrl-C stops it (``evolve.py`` starts and stops it).
 """
 
 from __future__ import annotations

@@ -1,0 +1,57 @@
+"""The README's Python example runs as it is written, and the README stays a front
+page: short, with the example a newcomer can paste."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+MAX_LINES = 250
+"""The README is a front page: the rest lives in docs/."""
+MAX_EXAMPLE_LINES = 20
+
+
+def first_python_block(text: str) -> str:
+    """The body of the first fenced ```python block of ``text``."""
+    match = re.search(r"^```python\n(.*?)^```", text, flags=re.MULTILINE | re.DOTALL)
+    assert match, "README.md has no ```python block"
+    return match.group(1)
+
+
+def test_the_readme_is_a_front_page() -> None:
+    lines = README.read_text().splitlines()
+    assert len(lines) <= MAX_LINES, f"README.md has {len(lines)} lines"
+    example = first_python_block(README.read_text()).splitlines()
+    assert len(example) <= MAX_EXAMPLE_LINES, f"the example has {len(example)} lines"
+
+
+def test_the_readme_example_runs_as_written(tmp_path: Path) -> None:
+    script = tmp_path / "readme_example.py"
+    script.write_text(first_python_block(README.read_text()))
+    # From an empty folder, as a reader who pasted it would run it.
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p)),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    printed = done.stdout.splitlines()
+    assert re.fullmatch(r"\d+ dimensions, e\.g\. .+", printed[0]), printed
+    assert printed[1].startswith("fitness [") and printed[2].startswith("novelty [")
+
+
+def test_a_missing_example_is_caught() -> None:
+    try:
+        first_python_block("# title\n```bash\necho\n```\n")
+    except AssertionError as error:
+        assert "no ```python block" in str(error)
+    else:
+        raise AssertionError("a README without a python block passed")
