@@ -111,17 +111,36 @@ def test_physics_sweep() -> None:
         common.physics_sweep(base, "hash_cell=8,12")
 
 
-def test_mase_verdicts_name_each_task_short_of_mase(
+def test_mase_verdicts_name_each_task_short_of_its_goal(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     mase = common.bench_module("mase")
     series = {
         ("gate_escape", "mase+sdbc"): mase.Series(cpu=[2.0, 2.0, 2.0]),
-        ("gate_escape", "rigid+sdbc"): mase.Series(cpu=[1.8, 2.2, 1.9]),
+        ("gate_escape", "rigid+sdbc"): mase.Series(cpu=[2.3, 2.6, 2.5]),
+        ("gate_escape", "kinematic+sdbc"): mase.Series(cpu=[7.8, 8.2, 7.9]),
         ("predator_prey", "mase+sdbc"): mase.Series(cpu=[1.0, 1.0, 1.0]),
-        ("predator_prey", "rigid+sdbc"): mase.Series(cpu=[1.0, 1.1, 0.9]),
+        ("predator_prey", "rigid+sdbc"): mase.Series(cpu=[1.2, 1.3, 1.1]),
+        ("predator_prey", "kinematic+sdbc"): mase.Series(cpu=[4.0, 4.1, 3.9]),
     }
-    mase.verdicts(series, ["gate_escape", "predator_prey"], ["rigid"], None)
+    names, models = ["gate_escape", "predator_prey"], ["rigid", "kinematic"]
+    mase.verdicts(series, names, models, None)
     out = capsys.readouterr().out
-    assert "gate_escape      rigid     0.950  SHORT of MASE" in out
-    assert "predator_prey    rigid     1.000  at least MASE's speed" in out
+    assert "gate_escape      rigid     1.250  reaches the goal 1.2" in out
+    assert "gate_escape      kinematic 3.950  SHORT of the goal 4" in out
+    assert "predator_prey    rigid     1.200  reaches the goal 1.2" in out
+    assert "predator_prey    kinematic 4.000  reaches the goal 4" in out
+    mase.verdicts(series, names, models, None, {"rigid": 1.25, "kinematic": 3.9})
+    out = capsys.readouterr().out
+    assert "gate_escape      kinematic 3.950  reaches the goal 3.9" in out
+    assert "predator_prey    rigid     1.200  SHORT of the goal 1.25" in out
+
+
+def test_mase_goals_parse_and_refuse() -> None:
+    mase = common.bench_module("mase")
+    assert mase.parse_goals(None) == mase.GOALS
+    assert mase.parse_goals(["rigid=1.5"])["rigid"] == 1.5
+    with pytest.raises(ValueError, match="MODEL=RATIO"):
+        mase.parse_goals(["soft=2"])
+    with pytest.raises(ValueError, match="number > 0"):
+        mase.parse_goals(["kinematic=zero"])
