@@ -30,6 +30,7 @@ from sdbc_sim.settings import (
     NonNegativeInt,
     PositiveInt,
     SettingsError,
+    check,
     load,
     settings,
     to_plain,
