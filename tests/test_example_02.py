@@ -222,6 +222,15 @@ def test_the_packages_install_and_work_without_ros(tmp_path: Path) -> None:
         assert helped.returncode == 0, helped.stderr
     listed = run(str(bin_dir / "sdbc-evolve"), "--list-tasks")
     assert listed.returncode == 0 and "gate_escape" in listed.stdout, listed.stderr
+    checks = ("--check", "declaration", "--check", "settings")
+    conformance = run(str(bin_dir / "sdbc-conformance"), "gate_escape", *checks)
+    assert conformance.returncode == 0, conformance.stdout + conformance.stderr
+    assert "2/2 checks passed" in conformance.stdout
+    # Dask is an extra: asked for without it, one line says how to get it. (The
+    # address is a closed port on loopback; nothing is contacted.)
+    dask = run(str(bin_dir / "sdbc-evolve"), "--scheduler", "tcp://127.0.0.1:1")
+    assert dask.returncode == 2
+    assert dask.stderr.strip().endswith("pip install 'sdbc_evolution[dask]'")
     for node in ("simulator_node", "controller_node", "evolution_node", "sdbc-graph"):
         refused = run(str(bin_dir / node))
         assert refused.returncode == 2, refused.stderr

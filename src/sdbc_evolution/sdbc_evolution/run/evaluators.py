@@ -471,6 +471,7 @@ class DaskEvaluator(Evaluator):
         timeout: float = DEFAULT_CONNECT_TIMEOUT,
         security: Any = None,
     ) -> None:
+        require_dask()
         from distributed import Client
         from distributed.security import Security
 
@@ -556,12 +557,29 @@ class DaskEvaluator(Evaluator):
         self._client.close()
 
 
+def require_dask() -> None:
+    """Refuses, in one line, a Dask cluster without Dask's client installed (an
+    extra of this package: a plain install evaluates locally).
+
+    Raises:
+        ValueError: ``distributed`` cannot be imported.
+    """
+    import importlib.util
+
+    if importlib.util.find_spec("distributed") is None:
+        raise ValueError(
+            "--scheduler needs Dask's distributed, which is not installed: "
+            "pip install 'sdbc_evolution[dask]'"
+        )
+
+
 def quiet_dask_logging() -> None:
     """Keeps Dask's client from logging tracebacks to the terminal (one per
     failed reconnection to a lost scheduler): a command says what happened in
     one line of its own. Warnings of the workers' code still come through."""
     import logging
 
+    require_dask()
     import distributed  # noqa: F401 (sets its loggers' levels when imported)
 
     # distributed.batched: the client's batched stream to the scheduler, which
