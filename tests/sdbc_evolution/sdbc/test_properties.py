@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from sdbc_evolution.sdbc.aggregation import aggregate_trial
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_evolution.sdbc.features import FeatureKind, StepFeatures
+from sdbc_evolution.sdbc.options import SdbcOptions
 from sdbc_sim.task_state import GroupState, TaskState
 from sdbc_states import GATE_ESCAPE, PREDATOR_PREY, RESOURCE_SHARING, random_state
 
@@ -142,6 +143,36 @@ def test_computing_only_the_active_trials_changes_nothing(
         for extractor in extractors:
             extractor.observe(state)
     reference = extractors[0].characterisations()
+    for extractor in extractors[1:]:
+        np.testing.assert_array_equal(extractor.characterisations(), reference)
+        np.testing.assert_array_equal(extractor.lengths, lengths)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    DESCRIPTIONS,
+    SEEDS,
+    st.integers(1, 40),
+    st.integers(1, 12),
+    st.sampled_from(["regression", "final", {"frames": 3}]),
+)
+def test_computing_only_the_active_trials_changes_nothing_with_options(
+    description, seed, n_trials, n_steps, aggregation
+):
+    rng = np.random.default_rng(seed)
+    lengths = rng.integers(1, n_steps + 1, n_trials)
+    options = SdbcOptions(aggregation=aggregation, state_deviation=True)
+    extractors = [SdbcExtractor(options, compact_below=c) for c in (0.0, 1.0, 0.5)]
+    for extractor in extractors:
+        extractor.start(description, n_trials)
+    state = None
+    for step in range(1, n_steps + 1):
+        state = random_state(description, n_trials, rng, step=step, previous=state)
+        state.active = step <= lengths
+        for extractor in extractors:
+            extractor.observe(state)
+    reference = extractors[0].characterisations()
+    assert reference.shape[1] == len(extractors[0].dimension_names)
     for extractor in extractors[1:]:
         np.testing.assert_array_equal(extractor.characterisations(), reference)
         np.testing.assert_array_equal(extractor.lengths, lengths)
