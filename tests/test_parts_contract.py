@@ -3,8 +3,9 @@ and those of installed distributions' entry points alike (the parts come from th
 registries, so a new part is checked without naming it here; tests/test_example_parts.py
 runs this file again with examples/07_own_parts installed).
 
-Of every part: its declaration round-trips (parse, to_plain, parse), an unknown
-option and an unknown name are refused in one line naming them; then, per kind,
+Of every part: it has a docstring and so has each option, its declaration
+round-trips (parse, to_plain, parse), an unknown option and an unknown name are
+refused in one line naming them; then, per kind,
 its answer has the kind's shape, and it is a function of its inputs and seed.
 """
 
@@ -31,7 +32,7 @@ from sdbc_evolution.transforms.pipeline import (
     apply_transforms,
 )
 from sdbc_sim.parts import PartSpec, Registry
-from sdbc_sim.settings import SettingsError, load
+from sdbc_sim.settings import SettingsError, field_docs, load
 
 KINDS: dict[str, tuple[Registry[Any], type[PartSpec[Any]]]] = {
     "characterisation": (CHARACTERISATIONS, CharacterisationSpec),
@@ -105,6 +106,16 @@ def changed_declarations(registry: Registry[Any], name: str) -> list[dict[str, A
 def declarations(kind: str, name: str) -> list[Any]:
     """The part with its default options, then with each option changed."""
     return [name, *changed_declarations(KINDS[kind][0], name)]
+
+
+@pytest.mark.parametrize(("kind", "name"), every_part())
+def test_a_part_says_what_it_is_and_what_each_option_means(
+    kind: str, name: str
+) -> None:
+    registered = KINDS[kind][0][name]
+    assert registered.summary, f"{registered.origin}: no docstring"
+    undocumented = [f for f, doc in field_docs(registered.options).items() if not doc]
+    assert not undocumented, f"{registered.options.__name__}: {undocumented}"
 
 
 @pytest.mark.parametrize(("kind", "name"), every_part())

@@ -161,8 +161,13 @@ def test_a_part_must_name_settings_with_a_default_for_every_option() -> None:
         options_class = Fine
 
     registry.register("good", Good)
+    registry.register("good", Good)  # the same again: nothing
+
+    class Other(Base):
+        options_class = Fine
+
     with pytest.raises(PartError, match="'good' is registered twice"):
-        registry.register("good", Good)
+        registry.register("good", Other)
     with pytest.raises(PartError, match="is not a subclass of"):
         registry.register("other", dict)  # type: ignore[arg-type]
     assert registry.names() == ("good",)

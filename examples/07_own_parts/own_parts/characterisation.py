@@ -3,7 +3,7 @@ the last step of each trial (Lehman & Stanley's end-point characterisation of ma
 navigation, 2011, for a team).
 
 It reads only the task state, so it works for any task whose description has a
-moving group of circles or points, and on the live graph's stream as in a batch.
+moving group of circles or points.
 """
 
 from __future__ import annotations

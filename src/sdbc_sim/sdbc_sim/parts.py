@@ -139,22 +139,34 @@ class Registry(Generic[P]):
         self._loaded: dict[str, Registered[P]] = {}
 
     def register(self, name: str, part: type[P], origin: str | None = None) -> None:
-        """Registers the package's part ``part`` as ``name``.
+        """Registers the package's part ``part`` as ``name`` (again: nothing).
 
         Raises:
-            PartError: A name taken, or a class that is not a part of this kind.
+            PartError: A name taken by another class, or a class that is not a
+                part of this kind.
         """
-        if name in self._own:
+        taken = self._own.get(name)
+        if taken is not None and taken.part is not part:
             raise PartError(f"{self.what} {name!r} is registered twice")
         where = origin or f"{part.__module__}.{part.__qualname__}"
-        self._own[name] = self._checked(name, part, where)
+        self._own[name] = self.checked(name, part, where)
 
-    def _checked(self, name: str, part: Any, where: str) -> Registered[P]:
+    def checked(self, name: str, part: Any, where: str) -> Registered[P]:
+        """``part`` as registered under ``name``, if it is a part of this kind: a
+        subclass of its base that passes the kind's own checks and names a settings
+        class with a default for every option.
+
+        Raises:
+            PartError: It is not, naming ``where`` it comes from.
+        """
         if not (isinstance(part, type) and issubclass(part, self.base)):
             raise PartError(
                 f"{where}: {part!r} is not a subclass of "
                 f"{self.base.__module__}.{self.base.__qualname__} (a {self.what})"
             )
+        checked = cast(type[P], part)
+        if self._check is not None:
+            self._check(checked, where)
         options: Any = getattr(part, self.options_attribute, None)
         if not is_settings(options):
             raise PartError(
@@ -168,9 +180,6 @@ class Registry(Generic[P]):
                 f"{where}: {options.__name__} needs a default for every option "
                 f"(a name alone declares the defaults): {error}"
             ) from None
-        checked = cast(type[P], part)
-        if self._check is not None:
-            self._check(checked, where)
         return Registered(name, checked, options, where)
 
     def _entry_points(self) -> dict[str, EntryPoint]:
@@ -189,10 +198,6 @@ class Registry(Generic[P]):
         loaded), sorted."""
         return tuple(sorted(set(self._own) | set(self._entry_points())))
 
-    def own(self) -> tuple[str, ...]:
-        """The names the package itself registers, in registration order."""
-        return tuple(self._own)
-
     def find(self, name: str) -> Registered[P] | None:
         """The part registered as ``name``, None if there is none.
 
@@ -208,7 +213,7 @@ class Registry(Generic[P]):
         if point is None:
             return None
         where = f"entry point {point.name} = {point.value!r} of group '{self.group}'"
-        found = self._checked(name, load_entry_point(point), where)
+        found = self.checked(name, load_entry_point(point), where)
         self._loaded[name] = found
         return found
 

@@ -17,10 +17,11 @@ and ``default_generations``. Three kinds of reference name one (:func:`resolve_t
 
 Every front end takes these: ``sdbc-evolve --task``, study presets, graph files and
 the simulator, controller and evolution nodes. A task is a part as every other kind
-is (:mod:`sdbc_sim.parts`: its settings class is ``config_class``), and its entry
-points are read and reported the same way; unlike the other kinds, every entry
-point is loaded when the registry is first read, because listings show each task's
-class.
+is (:mod:`sdbc_sim.parts`, registry :data:`TASKS`): a :class:`~sdbc_sim.task.Task`
+subclass whose settings class is ``config_class``, checked and its entry points read
+and reported the same way. Unlike the other kinds, this package's tasks are found by
+their modules, and :func:`available_tasks` loads every entry point, because listings
+show each task's class.
 """
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ from typing import Any
 import yaml
 
 from sdbc_sim.limits import MAX_STEPS, excerpt
-from sdbc_sim.parts import PartError, group_entry_points, load_entry_point
-from sdbc_sim.settings import SettingsError, is_settings, load
+from sdbc_sim.parts import PartError, Registry
+from sdbc_sim.settings import SettingsError, load
 from sdbc_sim.task import Task
 from sdbc_sim.yaml_input import YamlRefused, parse_yaml
 
@@ -57,6 +58,30 @@ class UnknownTask(ValueError):
     """A task reference that names no task; the message lists the known ones."""
 
 
+def _declares_what_a_task_must(task_class: type[Task], where: str) -> None:
+    missing = [
+        attribute
+        for attribute in ("name", "config_class", "default_generations")
+        if not hasattr(task_class, attribute)
+    ]
+    if missing:
+        raise PartError(
+            f"{where}: {task_class.__name__} does not declare {', '.join(missing)} "
+            "(see sdbc_sim/task.py, 'How to write a task')"
+        )
+
+
+TASKS: Registry[Task] = Registry(
+    "task",
+    ENTRY_POINT_GROUP,
+    Task,
+    options_attribute="config_class",
+    check=_declares_what_a_task_must,
+)
+"""Every registered task, by name: this package's (:func:`package_tasks`) and the
+entry points'."""
+
+
 @cache
 def package_tasks() -> dict[str, type[Task]]:
     """The tasks of this package: name -> task class."""
@@ -65,7 +90,9 @@ def package_tasks() -> dict[str, type[Task]]:
         module = importlib.import_module(f"{__name__}.{info.name}")
         task_class = getattr(module, "TASK", None)
         if task_class is not None:
-            task_class = _checked_task_class(task_class, f"{module.__name__}.TASK")
+            where = f"{module.__name__}.TASK"
+            task_class = _checked_task_class(task_class, where)
+            TASKS.register(task_class.name, task_class, where)
             found[task_class.name] = task_class
     return found
 
@@ -74,20 +101,18 @@ def package_tasks() -> dict[str, type[Task]]:
 def available_tasks() -> dict[str, type[Task]]:
     """Registered tasks: name -> task class, this package's first, then those of
     the :data:`ENTRY_POINT_GROUP` entry points (a name taken by this package is not
-    overridden).
+    overridden), every entry point loaded (listings show each task's class).
 
     Raises:
         UnknownTask: An entry point that does not load a task, naming it.
     """
     found = dict(package_tasks())
-    for point in group_entry_points(ENTRY_POINT_GROUP):
-        if point.name in found:
-            continue
-        try:
-            loaded = load_entry_point(point)
-        except PartError as error:
-            raise UnknownTask(str(error)) from None
-        found[point.name] = _checked_task_class(loaded, f"entry point {point.name}")
+    TASKS.refresh()  # read again: the cache of this function was cleared
+    try:
+        for name in TASKS.names():
+            found.setdefault(name, TASKS[name].part)
+    except PartError as error:
+        raise UnknownTask(str(error)) from None
     return found
 
 
@@ -182,24 +207,10 @@ def _module_from_file(path: Path, reference: str) -> Any:
 
 def _checked_task_class(value: Any, where: str) -> type[Task]:
     """``value`` if it is a task class that declares what a task must."""
-    if not (isinstance(value, type) and issubclass(value, Task)):
-        raise UnknownTask(f"{where}: {value!r} is not a subclass of sdbc_sim.task.Task")
-    missing = [
-        attribute
-        for attribute in ("name", "config_class", "default_generations")
-        if not hasattr(value, attribute)
-    ]
-    if missing:
-        raise UnknownTask(
-            f"{where}: {value.__name__} does not declare {', '.join(missing)} "
-            "(see sdbc_sim/task.py, 'How to write a task')"
-        )
-    if not is_settings(value.config_class):
-        raise UnknownTask(
-            f"{where}: {value.__name__}.config_class must be a settings class made "
-            "with @sdbc_sim.settings.settings"
-        )
-    return value
+    try:
+        return TASKS.checked(getattr(value, "name", ""), value, where).part
+    except PartError as error:
+        raise UnknownTask(str(error)) from None
 
 
 def make_task(reference: str, **overrides: Any) -> Task:
