@@ -199,6 +199,32 @@ def evaluate_chunk(
     )
 
 
+class TaskFailed(ValueError):
+    """A task that fails its first trial; the message says how."""
+
+
+def probe_task(spec: TaskSpec, info: TaskInfo) -> None:
+    """Runs one trial of a zero genome in this process, with every
+    characterisation of ``spec`` observing and its values checked
+    (:func:`check_values`), so that a task that cannot run (a task state that
+    does not fit its description, values outside the contract) is refused
+    before a run directory exists, not in the middle of its first generation.
+
+    Raises:
+        TaskFailed: Naming the task and what its trial did.
+    """
+    genome = np.zeros((1, info.genome_length))
+    try:
+        evaluation = evaluate_chunk(spec, genome, np.zeros((1, 1), dtype=np.int64))
+        check_values(evaluation, spec.name)
+    except ValuesOutOfRange as error:
+        raise TaskFailed(f"a first trial: {error}") from None
+    except (ValueError, TypeError, IndexError, KeyError) as error:
+        raise TaskFailed(
+            f"task {spec.name!r} fails its first trial: {type(error).__name__}: {error}"
+        ) from None
+
+
 def chunk_bounds(n: int, chunks: int) -> list[tuple[int, int]]:
     """Splits range(n) into at most ``chunks`` consecutive, nearly equal slices."""
     chunks = max(1, min(chunks, n))

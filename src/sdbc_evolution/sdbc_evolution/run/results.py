@@ -77,6 +77,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from sdbc_sim.limits import excerpt
 
 from sdbc_evolution.run.system_errors import named
 
@@ -199,6 +200,11 @@ INDIVIDUALS_ARRAYS = (
 """The per-individual arrays of an individuals file (besides ``sdbc_names``)."""
 
 
+FINITE_ARRAYS = ("fitness", "trial_fitness", "characterisation", "sdbc")
+"""Arrays of an individuals file that must be finite numbers (novelty is NaN
+under Fit)."""
+
+
 class RunDamaged(ValueError):
     """An output a run's checkpoint vouches for is missing or damaged."""
 
@@ -230,12 +236,17 @@ def check_individuals(path: Path, population_size: int) -> None:
             if missing:
                 raise RunDamaged(f"{path}: missing arrays {missing}")
             for name in INDIVIDUALS_ARRAYS:
-                rows = data[name].shape[:1]
+                array = data[name]
+                rows = array.shape[:1]
                 if rows != (population_size,):
                     raise RunDamaged(
                         f"{path}: {name} has {rows[0] if rows else 0} rows, the run's "
                         f"population is {population_size}"
                     )
+                if name in FINITE_ARRAYS and not (
+                    array.dtype.kind == "f" and np.isfinite(array).all()
+                ):
+                    raise RunDamaged(f"{path}: {name} holds NaN, infinity or no number")
     except RunDamaged:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
@@ -362,6 +373,13 @@ class ResultsDirectory:
                 f"{self.path / GENERATIONS_FILE}: generations {_listed(numbers)} "
                 f"where the checkpoint needs 0 to {generations - 1}"
             )
+        for g, row in enumerate(rows[:generations]):
+            problem = _row_problem(row, self.columns)
+            if problem is not None:
+                raise RunDamaged(
+                    f"{self.path / GENERATIONS_FILE}: the row of generation {g} "
+                    f"{problem}"
+                )
         try:
             best = np.load(self.path / BEST_GENOMES_FILE, allow_pickle=False)
         except (OSError, ValueError, EOFError) as error:
@@ -416,6 +434,32 @@ class ResultsDirectory:
         writer.writerow(self.columns)
         writer.writerows(rows)
         atomic_write_bytes(self.path / GENERATIONS_FILE, buffer.getvalue().encode())
+
+
+INTEGER_COLUMNS = ("generation", "best_index", "archive_size")
+"""Columns of ``generations.csv`` holding a count or an index."""
+OPTIONAL_COLUMNS = ("best_novelty", "reevaluated_fitness", "reevaluated_mean")
+"""Columns that may be empty (NaN): novelty under Fit, re-evaluation turned off;
+the weight columns too (unweighted treatments)."""
+
+
+def _row_problem(row: list[str], columns: tuple[str, ...]) -> str | None:
+    """What is wrong with one data row of ``generations.csv``, or None: every cell
+    there, integers where counts go, finite numbers everywhere else (empty only
+    in :data:`OPTIONAL_COLUMNS` and the weight columns)."""
+    if len(row) != len(columns):
+        return f"has {len(row)} cells, the header {len(columns)} (truncated?)"
+    for name, cell in zip(columns, row, strict=True):
+        optional = name in OPTIONAL_COLUMNS or name.startswith(WEIGHT_PREFIX)
+        if cell == "" and optional:
+            continue
+        try:
+            value = int(cell) if name in INTEGER_COLUMNS else float(cell)
+        except ValueError:
+            return f"holds {excerpt(cell)} in {name}, not a number"
+        if not math.isfinite(value) or (name in INTEGER_COLUMNS and value < 0):
+            return f"holds {excerpt(cell)} in {name}"
+    return None
 
 
 def _listed(numbers: list[str]) -> str:

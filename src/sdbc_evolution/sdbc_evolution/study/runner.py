@@ -37,7 +37,6 @@ import queue
 import signal
 import sys
 import time
-import traceback
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
@@ -59,6 +58,7 @@ from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
 from sdbc_evolution.run.stopping import STOP_SIGNALS
+from sdbc_evolution.run.system_errors import describe_failure
 from sdbc_evolution.study.plan import (
     LOG_FILE,
     STUDY_FILE,
@@ -123,6 +123,8 @@ class RunOutcome:
     error: str = ""
     interrupted: bool = False
     busy: str = ""
+    system: bool = False
+    """The system refused (a full disk, no memory): every run would fail alike."""
 
 
 @dataclass
@@ -300,6 +302,9 @@ def run_study(
                     outcome.busy.append(result.name)
                     say(f"{result.name}: left alone: {result.busy}")
                     continue
+                if result.system:
+                    # As in process: one line and exit 2, the study resumable.
+                    raise StudyError(f"{result.name}: {result.error}")
                 outcome.ran.append(result)
                 if result.error:
                     outcome.failed.append(result)
@@ -477,10 +482,11 @@ def _run_one_by_one(
         with evaluator_for(spec) as evaluator:
             try:
                 result = execute_run(spec, evaluator, advance, note)
-            except SchedulerLost:
+            except (SchedulerLost, OSError, MemoryError):
                 raise  # every run after this one would fail the same way
-            except Exception:
-                result = RunOutcome(spec.name, done, False, traceback.format_exc())
+            except Exception as error:
+                failure = describe_failure(error, "sdbc-study")
+                result = RunOutcome(spec.name, done, False, failure)
         progress.ended(spec.name, result.finished)
         results.append(result)
         if result.interrupted:
@@ -545,9 +551,13 @@ def _child(spec: RunSpec, note: dict[str, Any], messages: Any) -> None:
         result = RunOutcome(
             spec.name, run_status(spec).generations_done, False, interrupted=True
         )
-    except Exception:
+    except Exception as error:
         result = RunOutcome(
-            spec.name, run_status(spec).generations_done, False, traceback.format_exc()
+            spec.name,
+            run_status(spec).generations_done,
+            False,
+            describe_failure(error, "sdbc-study"),
+            system=isinstance(error, (OSError, MemoryError)),
         )
     messages.put(("done", spec.name, result))
 
@@ -595,7 +605,7 @@ class _Children:
             process.join()
             self.results[name] = payload
             self.progress.ended(name, payload.finished)
-            self.stopping = self.stopping or payload.interrupted
+            self.stopping = self.stopping or payload.interrupted or payload.system
 
     def interrupt(self) -> None:
         """Asks every running child to stop (they checkpoint atomically)."""
