@@ -90,3 +90,23 @@ def test_a_digest_opens_no_file_outside_its_folder(tmp_path: Path, task: str) ->
     assert task_file(tmp_path, "gate_escape", tmp_path / "study.json") == (
         tmp_path / "gate_escape.npz"
     )
+
+
+def test_a_run_another_session_finished_is_not_counted_as_this_ones(
+    tmp_path: Path,
+) -> None:
+    from sdbc_evolution.run.evaluators import LocalEvaluator
+    from sdbc_evolution.run.experiment import task_spec
+    from sdbc_evolution.study.plan import study_plan
+    from sdbc_evolution.study.presets import preset_from_dict
+    from sdbc_evolution.study.runner import execute_run, run_study
+
+    preset = preset_from_dict({**TINY, "runs": 1, "treatments": ["fit"]})
+    out = tmp_path / "study"
+    first = run_study(preset, out, quiet=True)
+    assert [r.name for r in first.ran] == ["gate_escape/fit/run_00"]
+    # A second session that planned the run before the first finished it.
+    [spec] = study_plan(preset, out)
+    with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
+        outcome = execute_run(spec, evaluator, lambda g: None, {})
+    assert outcome.finished and outcome.by_other

@@ -362,9 +362,11 @@ class LocalEvaluator(Evaluator):
     def __init__(self, spec: TaskSpec, workers: int | None = None) -> None:
         if workers is None:
             workers = available_cores()
-        if not 1 <= workers <= MAX_WORKERS:
+        if workers < 1:
+            raise ValueError(f"workers must be at least 1, got {workers}")
+        if workers > MAX_WORKERS:
             raise ValueError(
-                f"workers must be in [1, MAX_WORKERS={MAX_WORKERS}], got {workers}"
+                f"workers must be at most MAX_WORKERS={MAX_WORKERS}, got {workers}"
             )
         self.spec = spec
         self._workers = workers
@@ -627,9 +629,11 @@ def check_evaluator_arguments(args: argparse.Namespace) -> None:
         ValueError: Naming the flag, its limit and the value.
     """
     workers = args.workers
-    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers: must be at least 1, got {workers}")
+    if workers is not None and workers > MAX_WORKERS:
         raise ValueError(
-            f"--workers: must be in [1, MAX_WORKERS={MAX_WORKERS}], got {workers}"
+            f"--workers: must be at most MAX_WORKERS={MAX_WORKERS}, got {workers}"
         )
     timeout = args.connect_timeout
     if not (math.isfinite(timeout) and 0 < timeout <= MAX_CONNECT_TIMEOUT):

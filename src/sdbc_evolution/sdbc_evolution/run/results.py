@@ -71,6 +71,7 @@ import csv
 import io
 import math
 import os
+import re
 import tempfile
 import zipfile
 from dataclasses import dataclass
@@ -394,7 +395,9 @@ class ResultsDirectory:
 
     def truncate(self, generations: int) -> None:
         """Drops every output of generation ``generations`` and later (left by a run
-        stopped between writing a generation and its checkpoint)."""
+        stopped between writing a generation and its checkpoint), and the
+        temporary files of writes that were killed (:meth:`remove_leftovers`)."""
+        self.remove_leftovers()
         rows = self.read_rows()
         if len(rows) < generations:
             raise ValueError(
@@ -414,6 +417,25 @@ class ResultsDirectory:
         for path in sorted((self.path / INDIVIDUALS_DIR).glob("gen_*.npz")):
             if int(path.stem.split("_")[1]) >= generations:
                 path.unlink()
+
+    def remove_leftovers(self) -> list[Path]:
+        """Removes the temporary files :func:`atomic_write_bytes` leaves when its
+        process is killed mid-write (``.checkpoint.npz.XXXXXXXX``, ...): those of
+        this directory's own files and of its individuals files. Only for the
+        holder of the run's lock, so that no write is going on. Returns them."""
+        removed = []
+        for folder in (self.path, self.path / INDIVIDUALS_DIR):
+            if not folder.is_dir():
+                continue
+            for path in folder.iterdir():
+                match = _TEMPORARY.fullmatch(path.name)
+                if match is None or not path.is_file():
+                    continue
+                name = match.group(1)
+                if name in _OWN_FILES or _INDIVIDUALS_FILE.fullmatch(name):
+                    path.unlink(missing_ok=True)
+                    removed.append(path)
+        return removed
 
     def read_rows(self) -> list[list[str]]:
         """Data rows of ``generations.csv`` as strings (the header checked)."""
@@ -436,6 +458,19 @@ class ResultsDirectory:
         atomic_write_bytes(self.path / GENERATIONS_FILE, buffer.getvalue().encode())
 
 
+_TEMPORARY = re.compile(r"\.(.+)\.[a-z0-9_]{8}")
+"""A temporary file of :func:`atomic_write_bytes` (``tempfile.mkstemp``'s
+eight random characters after the target's name)."""
+_INDIVIDUALS_FILE = re.compile(r"gen_\d{5}\.npz")
+_OWN_FILES = (
+    CONFIG_FILE,
+    GENERATIONS_FILE,
+    BEST_GENOMES_FILE,
+    CHECKPOINT_FILE,
+    "study_run.json",
+)
+"""Files a run directory's writers write atomically (``study_run.json``: the
+study's record of how a run was executed)."""
 INTEGER_COLUMNS = ("generation", "best_index", "archive_size")
 """Columns of ``generations.csv`` holding a count or an index."""
 OPTIONAL_COLUMNS = ("best_novelty", "reevaluated_fitness", "reevaluated_mean")

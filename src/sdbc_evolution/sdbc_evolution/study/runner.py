@@ -125,6 +125,8 @@ class RunOutcome:
     busy: str = ""
     system: bool = False
     """The system refused (a full disk, no memory): every run would fail alike."""
+    by_other: bool = False
+    """Found finished by another session: counted as skipped, not as this one's."""
 
 
 @dataclass
@@ -289,7 +291,9 @@ def run_study(
                             n.startswith(f"{task}/") for n in outcome.skipped
                         ),
                         "worked_on": len(results),
-                        "finished_now": sum(r.finished for r in results),
+                        "finished_now": sum(
+                            r.finished and not r.by_other for r in results
+                        ),
                         "failed": [r.name for r in results if r.error],
                         "interrupted": aborted == "KeyboardInterrupt"
                         or any(r.interrupted for r in results),
@@ -301,6 +305,9 @@ def run_study(
                 if result.busy:
                     outcome.busy.append(result.name)
                     say(f"{result.name}: left alone: {result.busy}")
+                    continue
+                if result.by_other:
+                    outcome.skipped.append(result.name)
                     continue
                 if result.system:
                     # As in process: one line and exit 2, the study resumable.
@@ -405,8 +412,11 @@ def execute_run(
         return RunOutcome(spec.name, 0, finished=False, busy=status.detail)
     try:
         if status.state is RunProgress.FINISHED:
+            # Finished by another session since this one looked: its run, not ours.
             lock.release()
-            return RunOutcome(spec.name, status.generations_done, finished=True)
+            return RunOutcome(
+                spec.name, status.generations_done, finished=True, by_other=True
+            )
         if status.state is RunProgress.PARTIAL:
             experiment = Experiment.resume(spec.config, spec.path, evaluator, lock=lock)
         elif status.state is RunProgress.NEW:
