@@ -129,7 +129,9 @@ def _layout(description: TaskDescription, options: SdbcOptions) -> _Layout:
     deviation: list[tuple[int, int]] = []
     if options.state_deviation:
         for g, spec in enumerate(groups):
-            if g in ignored or spec.static or spec.max_size < 2:
+            # Static groups too: static means the entities do not move, not
+            # that their state is constant (a charger's level, a resource's load).
+            if g in ignored or spec.max_size < 2:
                 continue
             for a, attribute in enumerate(spec.attributes):
                 deviation.append((g, a))
