@@ -1,15 +1,12 @@
-"""The smaller boundaries of issue 38: the state count's size, the state
-deviation of static groups, and a lock note on a full disk."""
+"""The smaller boundaries of issue 38: the state count's size and the state
+deviation of static groups (the lock note on a full disk is tested with the
+study's full disk, tests/sdbc_evolution/study/test_boundaries_study.py)."""
 
 from __future__ import annotations
-
-import subprocess
-from pathlib import Path
 
 import pytest
 from sdbc_evolution.characterise.sdbc import SdbcOptions, sdbc_dimension_names
 from sdbc_evolution.characterise.sensor_effector import StateCountOptions
-from sdbc_evolution.run.lock import RunLock
 from sdbc_sim.limits import STATE_COUNT_STATES
 from sdbc_sim.settings import SettingsError
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, TaskDescription
@@ -39,29 +36,3 @@ def test_state_deviation_covers_static_groups() -> None:
     names = sdbc_dimension_names(description, SdbcOptions(state_deviation=True))
     assert any("Charger load deviation" in n for n in names), names
     assert any("Robot x deviation" in n for n in names), names
-
-
-def test_a_lock_note_on_a_full_disk_names_the_lock_file(tmp_path: Path) -> None:
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    made = subprocess.run(
-        ["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)],
-        capture_output=True,
-        text=True,
-    )
-    if made.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {made.stderr.strip()}")
-    try:
-        (disk / "run").mkdir()
-        with open(disk / "filler", "wb", buffering=0) as f:
-            try:
-                while True:
-                    f.write(b"x" * 4096)
-            except OSError:
-                pass  # full
-        with pytest.raises(OSError) as refused:
-            RunLock(disk / "run").acquire()
-        assert refused.value.filename == str(disk / "run" / ".lock")
-        assert "No space left on device" in str(refused.value)
-    finally:
-        subprocess.run(["umount", str(disk)], check=True)

@@ -1,6 +1,9 @@
 """``sdbc-study run`` at the boundaries: a real full disk (a small tmpfs) is one
 line and exit 2 with the study's own way to continue, in process and with
-worker processes alike, and the same command then finishes the study."""
+worker processes alike, and the same command then finishes the study; the run
+lock's note on a full disk names its file; a damaged finished run is run
+again; a run another session finished is not counted as this one's; a digest
+opens nothing outside its folder."""
 
 from __future__ import annotations
 
@@ -110,3 +113,19 @@ def test_a_run_another_session_finished_is_not_counted_as_this_ones(
     with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
         outcome = execute_run(spec, evaluator, lambda g: None, {})
     assert outcome.finished and outcome.by_other
+
+
+def test_a_lock_note_on_a_full_disk_names_the_lock_file(small_disk: Path) -> None:
+    from sdbc_evolution.run.lock import RunLock
+
+    (small_disk / "run").mkdir()
+    with open(small_disk / "filler", "wb", buffering=0) as f:
+        try:
+            while True:
+                f.write(b"x" * 4096)
+        except OSError:
+            pass  # full
+    with pytest.raises(OSError) as refused:
+        RunLock(small_disk / "run").acquire()
+    assert refused.value.filename == str(small_disk / "run" / ".lock")
+    assert "No space left on device" in str(refused.value)
