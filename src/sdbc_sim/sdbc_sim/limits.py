@@ -38,6 +38,11 @@ WORKER_BYTES = 200 * 1024 * 1024
 """Memory of one local worker process besides its trials (the interpreter,
 numpy, pymunk, the task): 190 MB RSS measured in a forkserver worker after a
 gate escape trial, rounded up."""
+STATE_COUNT_STATES = 8192
+"""Most dimensions of the ``state_count`` characterisation (``max_states``): its
+counts are trials x states float64, about 130 MB for the paper's 2000 trials of
+a generation at this limit (``levels: 3`` on foraging asks for 3^16 = 43
+million)."""
 MAX_CONNECT_TIMEOUT = 86_400.0
 """Longest ``--connect-timeout``, seconds (a day): beyond it, waits overflow."""
 

@@ -22,3 +22,10 @@ class CharacterisationNineteen(GateEscape):
     def results(self, trials, length):  # type: ignore[no-untyped-def]
         fitness, characterisation = super().results(trials, length)
         return fitness, characterisation * 18.0 + 1.0
+
+
+class MissingGroup(GateEscape):
+    """Its task state holds one group fewer than its description declares."""
+
+    def task_state(self, trials, bodies):  # type: ignore[no-untyped-def]
+        return super().task_state(trials, bodies)[:-1]

@@ -83,9 +83,11 @@ def tiny_config(tmp_path: Path, task: str) -> Path:
     [
         ("NegativeFitness", "returned trial fitness -"),
         ("CharacterisationNineteen", "returned characterisation 'task' "),
+        ("MissingGroup", "fails its first trial: ValueError: task 'gate_escape', "
+         "step 1: 2 groups in the state, 3 in the description"),
     ],
-)
-def test_a_task_breaking_the_ranges_stops_its_run_with_one_line(
+)  # fmt: skip
+def test_a_task_that_breaks_the_contract_is_one_line_before_its_run_directory(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], task: str, message: str
 ) -> None:
     config = tiny_config(tmp_path, f"{TASKS}:{task}")
@@ -93,13 +95,38 @@ def test_a_task_breaking_the_ranges_stops_its_run_with_one_line(
     argv = ["--config", str(config), "--out", str(out), "--workers", "1"]
     assert main([*argv, "--quiet", "--no-gif"]) == 2
     err = capsys.readouterr().err.strip()
-    assert message in err and "contract says in [0, 1]" in err, err
-    assert len(err.splitlines()) == 1 and f"--resume --out {out}" in err
-    # Nothing of the bad generation was written.
-    assert (
-        not (out / "generations.csv").exists()
-        or len((out / "generations.csv").read_text().splitlines()) <= 1
+    assert message in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_values_out_of_range_mid_run_stop_it_before_the_generation_is_written(
+    tmp_path: Path,
+) -> None:
+    from evolution_helpers import TOY_INFO
+    from sdbc_evolution.run.config import config_from_dict
+    from sdbc_evolution.run.experiment import Experiment
+    from sdbc_evolution.run.results import read_generations
+
+    config = config_from_dict(
+        {
+            "task": "toy",
+            "generations": 3,
+            "ga": {"population_size": 6, "elites": 1, "tournament_size": 2},
+            "novelty": {"k": 3},
+            "evaluation": {"trials": 2, "reevaluation_trials": 0},
+        }
     )
+    out = tmp_path / "run"
+    with Experiment.create(config, out, ToyEvaluator(), TOY_INFO) as experiment:
+        experiment.run()
+    with (
+        Experiment.resume(
+            config.replace(generations=5), out, OutsideAnswers(), TOY_INFO
+        ) as experiment,
+        pytest.raises(ValuesOutOfRange, match="trial fitness 20.0"),
+    ):
+        experiment.run()
+    assert len(read_generations(out)["generation"]) == 3
 
 
 def test_combined_evaluation_overrides_all_hold() -> None:
@@ -142,7 +169,7 @@ def test_workers_are_bounded_and_counted_in_the_memory_check(
     argv = ["--out", str(out), "--quiet", "--no-gif"]
     assert main([*argv, "--workers", str(MAX_WORKERS + 1)]) == 2
     err = capsys.readouterr().err
-    assert f"--workers: must be in [1, MAX_WORKERS={MAX_WORKERS}]" in err
+    assert f"--workers: must be at most MAX_WORKERS={MAX_WORKERS}" in err
     assert not out.exists()
     config = config_from_dict({"ga": {"population_size": 10}})
     info = TaskInfo.of(task_spec(config))
@@ -200,3 +227,44 @@ def test_a_small_preset_without_generations_is_refused() -> None:
     preset_from_dict({**small, "generations": {"gate_escape": 5, "predator_prey": 5}})
     # At the paper's own scale, the paper's generations are what it asks for.
     assert load_preset("paper").generations_of("gate_escape") == 500
+
+
+def test_resume_runs_no_task_file_named_by_the_run_directory_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run directory is data: whoever could write its config.yaml must not
+    choose the code that --resume imports."""
+    evil = tmp_path / "evil.py"
+    marker = tmp_path / "imported"
+    evil.write_text(
+        f"from pathlib import Path\nPath({str(marker)!r}).write_text('ran')\n"
+        "from sdbc_sim.tasks.gate_escape import GateEscape as Evil\n"
+    )
+    out = tmp_path / "run"
+    assert main(["--config", str(tiny_config(tmp_path, "gate_escape")), "--out",
+                 str(out), "--quiet", "--no-gif", "--workers", "1"]) == 0  # fmt: skip
+    config = out / "config.yaml"
+    config.write_text(
+        config.read_text().replace("task: gate_escape", f"task: {evil}:Evil")
+    )
+    capsys.readouterr()
+    assert main(["--resume", "--out", str(out), "--quiet", "--no-gif"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"names the task file {evil}:Evil" in err and "add --task" in err
+    assert len(err.splitlines()) == 1 and not marker.exists()
+
+
+def test_resume_of_a_task_file_the_user_names_goes_on(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sdbc_evolution.run.config import ConfigError
+    from sdbc_evolution.run.request import ConfigRequest, resolve_config
+
+    task = f"{HERE / 'evolution_helpers.py'}:Nothing"
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.yaml").write_text(f"task: {task}\ngenerations: 2\n")
+    with pytest.raises(ConfigError, match="add --task"):
+        resolve_config(ConfigRequest(resume=True, out=out))
+    config = resolve_config(ConfigRequest(resume=True, out=out, task=task))
+    assert config.task == task

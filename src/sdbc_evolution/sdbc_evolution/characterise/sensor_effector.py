@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 import numpy as np
+from sdbc_sim.limits import STATE_COUNT_STATES
 from sdbc_sim.settings import Field, settings
 from sdbc_sim.task_state import TaskDescription, TaskState
 
@@ -39,8 +40,10 @@ class StateCountOptions:
 
     levels: Annotated[int, Field(ge=2)] = 2
     """Bins per sensor and effector value (the GECCO 2013 paper: 2)."""
-    max_states: Annotated[int, Field(ge=2)] = 1024
-    """Most dimensions; more possible states are hashed into this many buckets."""
+    max_states: Annotated[int, Field(ge=2, le=STATE_COUNT_STATES)] = 1024
+    """Most dimensions; more possible states are hashed into this many buckets
+    (at most ``sdbc_sim.limits.STATE_COUNT_STATES``: the counts are trials x
+    states floats)."""
 
 
 @settings

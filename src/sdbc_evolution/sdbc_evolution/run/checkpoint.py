@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sdbc_sim.limits import excerpt
 
 # The generators a checkpoint may name: the ask/tell object's (re-exported).
 from sdbc_evolution.ga.search import BIT_GENERATORS as BIT_GENERATORS
@@ -201,6 +202,10 @@ def config_differences(
 
 
 def _check_shapes(path: Path, c: Checkpoint) -> None:
+    """Refuses a checkpoint whose arrays do not fit together or hold what cannot
+    be: every float finite (a NaN weight or archive entry would be evaluated a
+    generation, then fail), indices and generations in range, the generators'
+    states of the shape numpy gives them. Names the first problem."""
     n = c.population.shape[0] if c.population.ndim == 2 else -1
     a = c.archive_behaviours.shape[0] if c.archive_behaviours.ndim == 2 else -1
     ok = (
@@ -211,11 +216,78 @@ def _check_shapes(path: Path, c: Checkpoint) -> None:
         and a >= 0
         and c.archive_fitness.shape == (a,)
         and c.archive_generation.shape == (a,)
-        and np.isfinite(c.population).all()
         and (c.weights is None or c.weights.ndim == 1)
     )
     if not ok:
         raise CheckpointError(f"corrupt checkpoint {path}: inconsistent arrays")
+    floats = {
+        "population": c.population,
+        "archive_behaviours": c.archive_behaviours,
+        "archive_fitness": c.archive_fitness,
+    }
+    if c.weights is not None:
+        floats["weights"] = c.weights
+    for name, array in floats.items():
+        if array.dtype.kind not in "fiu" or not np.isfinite(array).all():
+            raise CheckpointError(
+                f"corrupt checkpoint {path}: {name} holds NaN, infinity or no number"
+            )
+    integers = {
+        "parent": (c.parent, -1),
+        "archive_generation": (c.archive_generation, 0),
+    }
+    for name, (array, low) in integers.items():
+        if array.dtype.kind not in "iu" or (array.size and array.min() < low):
+            raise CheckpointError(
+                f"corrupt checkpoint {path}: {name} holds an index below {low} or "
+                "no integer"
+            )
+    if c.archive_generation.size and c.archive_generation.max() >= max(c.generation, 1):
+        raise CheckpointError(
+            f"corrupt checkpoint {path}: archive_generation holds a generation "
+            f"after the checkpoint's {c.generation}"
+        )
+    if c.elite.dtype.kind != "b":
+        raise CheckpointError(f"corrupt checkpoint {path}: elite is not boolean")
+    for name in ("ga_rng", "reevaluation_rng"):
+        problem = _generator_problem(getattr(c, name))
+        if problem is not None:
+            raise CheckpointError(f"corrupt checkpoint {path}: {name}: {problem}")
+
+
+def _generator_problem(state: Any) -> str | None:
+    """What is wrong with a saved ``bit_generator.state``, or None: it must have
+    the structure (keys, and integers where numpy keeps integers) of a fresh
+    generator of the bit generator it names, and numpy must accept it."""
+    if not isinstance(state, dict):
+        return f"not a mapping but {type(state).__name__}"
+    name = state.get("bit_generator")
+    if name not in BIT_GENERATORS:
+        return f"unknown bit generator {excerpt(name)} (known: {list(BIT_GENERATORS)})"
+    fresh = getattr(np.random, name)().state
+    problem = _structure_problem(state, fresh, "")
+    if problem is not None:
+        return problem
+    try:
+        generator_from_state(state)
+    except CheckpointError as error:
+        return str(error)
+    return None
+
+
+def _structure_problem(got: Any, like: Any, where: str) -> str | None:
+    if isinstance(like, dict):
+        if not isinstance(got, dict) or set(got) != set(like):
+            return f"{where or 'state'} should hold the keys {sorted(like)}"
+        for key in like:
+            problem = _structure_problem(got[key], like[key], f"{where}{key}.")
+            if problem is not None:
+                return problem
+        return None
+    integer = isinstance(like, (int, np.integer)) and not isinstance(like, bool)
+    if integer and (isinstance(got, bool) or not isinstance(got, int)):
+        return f"{where.rstrip('.')} should be an integer, got {excerpt(got)}"
+    return None
 
 
 def generator_from_state(state: dict[str, Any]) -> np.random.Generator:

@@ -39,6 +39,7 @@ from sdbc_evolution.run.evaluators import (
     add_evaluator_arguments,
     check_evaluator_arguments,
     make_evaluator,
+    probe_task,
     quiet_dask_logging,
 )
 from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
@@ -172,11 +173,11 @@ def _main(args: argparse.Namespace) -> int:
         if out.exists() and not out.is_dir():
             raise ConfigError(f"--out {out}: a file, not a directory")
         workers = 1 if args.scheduler is not None else args.workers
+        info = TaskInfo.of(task_spec(config))
         check_footprint(
-            config,
-            TaskInfo.of(task_spec(config)),
-            workers=available_cores() if workers is None else workers,
+            config, info, workers=available_cores() if workers is None else workers
         )
+        probe_task(task_spec(config), info)
         if args.scheduler is not None:
             quiet_dask_logging()
         evaluator = make_evaluator(

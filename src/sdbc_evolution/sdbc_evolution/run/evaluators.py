@@ -199,6 +199,32 @@ def evaluate_chunk(
     )
 
 
+class TaskFailed(ValueError):
+    """A task that fails its first trial; the message says how."""
+
+
+def probe_task(spec: TaskSpec, info: TaskInfo) -> None:
+    """Runs one trial of a zero genome in this process, with every
+    characterisation of ``spec`` observing and its values checked
+    (:func:`check_values`), so that a task that cannot run (a task state that
+    does not fit its description, values outside the contract) is refused
+    before a run directory exists, not in the middle of its first generation.
+
+    Raises:
+        TaskFailed: Naming the task and what its trial did.
+    """
+    genome = np.zeros((1, info.genome_length))
+    try:
+        evaluation = evaluate_chunk(spec, genome, np.zeros((1, 1), dtype=np.int64))
+        check_values(evaluation, spec.name)
+    except ValuesOutOfRange as error:
+        raise TaskFailed(f"a first trial: {error}") from None
+    except (ValueError, TypeError, IndexError, KeyError) as error:
+        raise TaskFailed(
+            f"task {spec.name!r} fails its first trial: {type(error).__name__}: {error}"
+        ) from None
+
+
 def chunk_bounds(n: int, chunks: int) -> list[tuple[int, int]]:
     """Splits range(n) into at most ``chunks`` consecutive, nearly equal slices."""
     chunks = max(1, min(chunks, n))
@@ -336,9 +362,11 @@ class LocalEvaluator(Evaluator):
     def __init__(self, spec: TaskSpec, workers: int | None = None) -> None:
         if workers is None:
             workers = available_cores()
-        if not 1 <= workers <= MAX_WORKERS:
+        if workers < 1:
+            raise ValueError(f"workers must be at least 1, got {workers}")
+        if workers > MAX_WORKERS:
             raise ValueError(
-                f"workers must be in [1, MAX_WORKERS={MAX_WORKERS}], got {workers}"
+                f"workers must be at most MAX_WORKERS={MAX_WORKERS}, got {workers}"
             )
         self.spec = spec
         self._workers = workers
@@ -619,9 +647,11 @@ def check_evaluator_arguments(args: argparse.Namespace) -> None:
         ValueError: Naming the flag, its limit and the value.
     """
     workers = args.workers
-    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers: must be at least 1, got {workers}")
+    if workers is not None and workers > MAX_WORKERS:
         raise ValueError(
-            f"--workers: must be in [1, MAX_WORKERS={MAX_WORKERS}], got {workers}"
+            f"--workers: must be at most MAX_WORKERS={MAX_WORKERS}, got {workers}"
         )
     timeout = args.connect_timeout
     if not (math.isfinite(timeout) and 0 < timeout <= MAX_CONNECT_TIMEOUT):

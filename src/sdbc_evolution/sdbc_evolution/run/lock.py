@@ -15,11 +15,14 @@ locks); a filesystem without locks fails loudly when the lock is taken.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import socket
 from pathlib import Path
 from typing import IO
+
+from sdbc_evolution.run.system_errors import named
 
 LOCK_FILE = ".lock"
 """The lock of a run directory, inside it."""
@@ -74,10 +77,18 @@ class RunLock:
         except BaseException:
             file.close()
             raise
-        file.seek(0)
-        file.truncate()
-        file.write(f"{os.getpid()} {socket.gethostname()}\n")
-        file.flush()
+        try:
+            file.seek(0)
+            file.truncate()
+            file.write(f"{os.getpid()} {socket.gethostname()}\n")
+            file.flush()
+        except OSError as error:
+            # A full disk fails here first; a write names no path by itself.
+            # Closing flushes the note again (and fails again), but frees the
+            # descriptor, and with it the lock.
+            with contextlib.suppress(OSError):
+                file.close()
+            raise named(error, self.path) from None
         self._file = file
         return self
 

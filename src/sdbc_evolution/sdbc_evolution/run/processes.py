@@ -98,9 +98,69 @@ def _owned(owner: int, target: Callable[..., None], *args: Any) -> None:
     target(*args)
 
 
+TEMP_OWNER_FILE = "sdbc-owner"
+"""In multiprocessing's temporary folder (``$TMPDIR/pymp-*``, the fork server's
+socket): the pid and start time of the process that made it."""
+
+
 def _context() -> ForkServerContext:
     # forkserver: see the module docstring.
+    _own_temp_dir()
     return get_context("forkserver")
+
+
+def _start_time(pid: int) -> str | None:
+    """The kernel's start time of process ``pid`` (tells a reused pid apart),
+    or None if there is no such process."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            # Field 22, counted after the command name, which may hold spaces.
+            return f.read().rsplit(")", 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
+
+
+_OWNED: list[str] = []
+
+
+def _own_temp_dir() -> None:
+    """Marks this process's multiprocessing folder as its own, once, and first
+    removes the folders of marked owners that are gone: a SIGKILLed command
+    cannot run multiprocessing's clean-up, and left one ``pymp-*`` per kill."""
+    if _OWNED:
+        return
+    from multiprocessing import util
+
+    clear_stale_temp_dirs()
+    folder = util.get_temp_dir()
+    pid = os.getpid()
+    marker = os.path.join(folder, TEMP_OWNER_FILE)
+    with open(marker, "w") as f:
+        f.write(f"{pid} {_start_time(pid)}\n")
+    _OWNED.append(folder)
+
+
+def clear_stale_temp_dirs() -> list[str]:
+    """Removes the ``pymp-*`` folders under the temporary directory whose owner
+    (as its :data:`TEMP_OWNER_FILE` says) is no longer running; returns them.
+    Folders without the mark are not this project's to judge, and are left."""
+    import glob
+    import shutil
+    import tempfile
+
+    removed = []
+    for folder in glob.glob(os.path.join(tempfile.gettempdir(), "pymp-*")):
+        try:
+            with open(os.path.join(folder, TEMP_OWNER_FILE)) as f:
+                pid_text, started = f.read().split()
+            pid = int(pid_text)
+        except (OSError, ValueError):
+            continue
+        if _start_time(pid) == started:
+            continue  # still running
+        shutil.rmtree(folder, ignore_errors=True)
+        removed.append(folder)
+    return removed
 
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:

@@ -84,6 +84,7 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
         if not (out / CONFIG_FILE).is_file():
             raise CheckpointError(f"--resume: {out} holds no run ({CONFIG_FILE})")
         config = load_config(out / CONFIG_FILE)
+        _check_named_code(config.task, request.task, out / CONFIG_FILE)
     else:
         config = quickstart_config()
     changes: dict[str, Any] = {}
@@ -115,6 +116,22 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
         return config.replace(**changes).resolved()
     except (TypeError, ValueError) as error:
         raise ConfigError(str(error)) from None
+
+
+def _check_named_code(task: str, given: str | None, where: Path) -> None:
+    """Refuses to resume a run whose task is a Python file unless the user names
+    the same file: a run directory is data, and whoever could write its
+    ``config.yaml`` would otherwise choose the code that ``--resume`` runs."""
+    from sdbc_sim.tasks import is_file_reference, task_reference
+
+    if not is_file_reference(task):
+        return
+    if given is not None and task_reference(given) == task:
+        return
+    raise ConfigError(
+        f"--resume: {where} names the task file {task}; code named by a run "
+        f"directory is run only if you name it too: add --task {task}"
+    )
 
 
 def default_out(config: ExperimentConfig) -> Path:

@@ -71,12 +71,14 @@ import csv
 import io
 import math
 import os
+import re
 import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from sdbc_sim.limits import excerpt
 
 from sdbc_evolution.run.system_errors import named
 
@@ -199,6 +201,11 @@ INDIVIDUALS_ARRAYS = (
 """The per-individual arrays of an individuals file (besides ``sdbc_names``)."""
 
 
+FINITE_ARRAYS = ("fitness", "trial_fitness", "characterisation", "sdbc")
+"""Arrays of an individuals file that must be finite numbers (novelty is NaN
+under Fit)."""
+
+
 class RunDamaged(ValueError):
     """An output a run's checkpoint vouches for is missing or damaged."""
 
@@ -230,12 +237,17 @@ def check_individuals(path: Path, population_size: int) -> None:
             if missing:
                 raise RunDamaged(f"{path}: missing arrays {missing}")
             for name in INDIVIDUALS_ARRAYS:
-                rows = data[name].shape[:1]
+                array = data[name]
+                rows = array.shape[:1]
                 if rows != (population_size,):
                     raise RunDamaged(
                         f"{path}: {name} has {rows[0] if rows else 0} rows, the run's "
                         f"population is {population_size}"
                     )
+                if name in FINITE_ARRAYS and not (
+                    array.dtype.kind == "f" and np.isfinite(array).all()
+                ):
+                    raise RunDamaged(f"{path}: {name} holds NaN, infinity or no number")
     except RunDamaged:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
@@ -362,6 +374,13 @@ class ResultsDirectory:
                 f"{self.path / GENERATIONS_FILE}: generations {_listed(numbers)} "
                 f"where the checkpoint needs 0 to {generations - 1}"
             )
+        for g, row in enumerate(rows[:generations]):
+            problem = _row_problem(row, self.columns)
+            if problem is not None:
+                raise RunDamaged(
+                    f"{self.path / GENERATIONS_FILE}: the row of generation {g} "
+                    f"{problem}"
+                )
         try:
             best = np.load(self.path / BEST_GENOMES_FILE, allow_pickle=False)
         except (OSError, ValueError, EOFError) as error:
@@ -376,7 +395,9 @@ class ResultsDirectory:
 
     def truncate(self, generations: int) -> None:
         """Drops every output of generation ``generations`` and later (left by a run
-        stopped between writing a generation and its checkpoint)."""
+        stopped between writing a generation and its checkpoint), and the
+        temporary files of writes that were killed (:meth:`remove_leftovers`)."""
+        self.remove_leftovers()
         rows = self.read_rows()
         if len(rows) < generations:
             raise ValueError(
@@ -397,6 +418,25 @@ class ResultsDirectory:
             if int(path.stem.split("_")[1]) >= generations:
                 path.unlink()
 
+    def remove_leftovers(self) -> list[Path]:
+        """Removes the temporary files :func:`atomic_write_bytes` leaves when its
+        process is killed mid-write (``.checkpoint.npz.XXXXXXXX``, ...): those of
+        this directory's own files and of its individuals files. Only for the
+        holder of the run's lock, so that no write is going on. Returns them."""
+        removed = []
+        for folder in (self.path, self.path / INDIVIDUALS_DIR):
+            if not folder.is_dir():
+                continue
+            for path in folder.iterdir():
+                match = _TEMPORARY.fullmatch(path.name)
+                if match is None or not path.is_file():
+                    continue
+                name = match.group(1)
+                if name in _OWN_FILES or _INDIVIDUALS_FILE.fullmatch(name):
+                    path.unlink(missing_ok=True)
+                    removed.append(path)
+        return removed
+
     def read_rows(self) -> list[list[str]]:
         """Data rows of ``generations.csv`` as strings (the header checked)."""
         with open(self.path / GENERATIONS_FILE, newline="") as f:
@@ -416,6 +456,45 @@ class ResultsDirectory:
         writer.writerow(self.columns)
         writer.writerows(rows)
         atomic_write_bytes(self.path / GENERATIONS_FILE, buffer.getvalue().encode())
+
+
+_TEMPORARY = re.compile(r"\.(.+)\.[a-z0-9_]{8}")
+"""A temporary file of :func:`atomic_write_bytes` (``tempfile.mkstemp``'s
+eight random characters after the target's name)."""
+_INDIVIDUALS_FILE = re.compile(r"gen_\d{5}\.npz")
+_OWN_FILES = (
+    CONFIG_FILE,
+    GENERATIONS_FILE,
+    BEST_GENOMES_FILE,
+    CHECKPOINT_FILE,
+    "study_run.json",
+)
+"""Files a run directory's writers write atomically (``study_run.json``: the
+study's record of how a run was executed)."""
+INTEGER_COLUMNS = ("generation", "best_index", "archive_size")
+"""Columns of ``generations.csv`` holding a count or an index."""
+OPTIONAL_COLUMNS = ("best_novelty", "reevaluated_fitness", "reevaluated_mean")
+"""Columns that may be empty (NaN): novelty under Fit, re-evaluation turned off;
+the weight columns too (unweighted treatments)."""
+
+
+def _row_problem(row: list[str], columns: tuple[str, ...]) -> str | None:
+    """What is wrong with one data row of ``generations.csv``, or None: every cell
+    there, integers where counts go, finite numbers everywhere else (empty only
+    in :data:`OPTIONAL_COLUMNS` and the weight columns)."""
+    if len(row) != len(columns):
+        return f"has {len(row)} cells, the header {len(columns)} (truncated?)"
+    for name, cell in zip(columns, row, strict=True):
+        optional = name in OPTIONAL_COLUMNS or name.startswith(WEIGHT_PREFIX)
+        if cell == "" and optional:
+            continue
+        try:
+            value = int(cell) if name in INTEGER_COLUMNS else float(cell)
+        except ValueError:
+            return f"holds {excerpt(cell)} in {name}, not a number"
+        if not math.isfinite(value) or (name in INTEGER_COLUMNS and value < 0):
+            return f"holds {excerpt(cell)} in {name}"
+    return None
 
 
 def _listed(numbers: list[str]) -> str:

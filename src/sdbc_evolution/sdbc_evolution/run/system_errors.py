@@ -10,17 +10,23 @@ from __future__ import annotations
 
 import errno
 import sys
+import traceback
 from collections.abc import Callable
 
 SYSTEM_ERROR_EXIT = 2
 """Exit status of a command stopped by the system's refusal (bad input, broadly)."""
 
+CONTINUE_HINTS = {
+    "sdbc-evolve": "--resume continues",
+    "sdbc-study": "the same sdbc-study command continues",
+}
+"""How each command continues what a full disk stopped."""
 _HINTS = {
     errno.EROFS: "choose a writable --out",
     errno.EACCES: "choose a directory you may write, or fix its permissions",
     errno.EPERM: "choose a directory you may write, or fix its permissions",
-    errno.ENOSPC: "free some space or choose another --out; --resume continues",
-    errno.EDQUOT: "free some space or choose another --out; --resume continues",
+    errno.ENOSPC: "free some space or choose another --out; {continues}",
+    errno.EDQUOT: "free some space or choose another --out; {continues}",
     errno.ENOTDIR: "a part of the path is a file, not a directory",
     errno.EEXIST: "a file is in the way of a directory",
     errno.EMFILE: "too many open files: raise the limit (ulimit -n)",
@@ -28,8 +34,10 @@ _HINTS = {
 }
 
 
-def describe_system_error(error: OSError | MemoryError) -> str:
-    """One line: what failed, on which path, and a hint."""
+def describe_system_error(
+    error: OSError | MemoryError, prog: str = "sdbc-evolve"
+) -> str:
+    """One line: what failed, on which path, and a hint (how ``prog`` goes on)."""
     if isinstance(error, MemoryError):
         return (
             "out of memory: choose a smaller population, fewer trials or fewer "
@@ -42,7 +50,23 @@ def describe_system_error(error: OSError | MemoryError) -> str:
         if error.filename2 is not None:
             where += f" -> {error.filename2}"
     hint = _HINTS.get(error.errno or 0)
+    if hint is not None:
+        hint = hint.format(continues=CONTINUE_HINTS.get(prog, "run it again"))
     return f"{what}{where}" + (f" ({hint})" if hint else "")
+
+
+def describe_failure(error: BaseException, prog: str = "sdbc-evolve") -> str:
+    """What stopped a run, for a report of many runs: one line for a refusal of
+    the system (:func:`describe_system_error`) or of a run's input (a
+    ``ValueError``: configuration, checkpoint, values out of range), the
+    traceback for anything else (a bug, whose traceback is what helps)."""
+    from sdbc_evolution.run.experiment import ExperimentError
+
+    if isinstance(error, (OSError, MemoryError)):
+        return describe_system_error(error, prog)
+    if isinstance(error, (ValueError, ExperimentError)):
+        return f"{type(error).__name__}: {error}"
+    return "".join(traceback.format_exception(error)).rstrip()
 
 
 def named(error: OSError, path: object) -> OSError:
@@ -59,5 +83,5 @@ def one_line_errors(prog: str, main: Callable[[], int]) -> int:
     try:
         return main()
     except (OSError, MemoryError) as error:
-        print(f"{prog}: error: {describe_system_error(error)}", file=sys.stderr)
+        print(f"{prog}: error: {describe_system_error(error, prog)}", file=sys.stderr)
         return SYSTEM_ERROR_EXIT

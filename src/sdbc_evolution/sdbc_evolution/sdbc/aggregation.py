@@ -28,7 +28,8 @@ trial length is the last dimension in every mode):
   feature; their width starts at one step and doubles (neighbours merged) whenever a
   trial outgrows them. A bin goes to the window of its first step, so the result is
   exact for trials up to 16 N steps and whenever window edges fall on bin edges;
-  otherwise a window edge is off by less than one bin (T / 16 N steps at most).
+  otherwise a window edge is off by less than one bin, and a bin is narrower than
+  2T / 16N = T / 8N steps (its width doubles only once the trial outgrows it).
   A window a short trial (T < N) leaves empty gets 0.
 - ``regression``: the least-squares line x_f(t) ~ a_f + b_f t over the defined steps
   (t = 1..T): ``[a_1..a_F, b_1..b_F, T]``, from five running sums per feature. A

@@ -18,7 +18,7 @@ step yields, group by group in the description's order:
 
 With :class:`~.options.SdbcOptions`, groups may be left out (``ignore_groups``) and
 two kinds follow the paper's, in this order: the standard deviation of each state
-attribute over a moving group's entities (``state_deviation``) and the difference
+attribute over a group's entities (``state_deviation``) and the difference
 of the mean states of an attribute two groups share (``relations``). Every kind is
 declared here and only here: its :class:`FeatureKind`, its place in
 :func:`behaviour_features`, its name in :func:`feature_name` and its sum and count
@@ -179,9 +179,10 @@ def has_group_distance(group: EntityGroupSpec, other: EntityGroupSpec) -> bool:
 
 
 def has_state_deviation(group: EntityGroupSpec) -> bool:
-    """The deviation over entities is a behaviour: the group moves and can hold two
-    entities (as for eq. 4)."""
-    return has_dispersion(group)
+    """The deviation over entities is a behaviour: the group can hold two entities.
+    Static groups too: static means the entities do not move, not that their state
+    is constant (a charger's load)."""
+    return group.max_size > 1
 
 
 def _ignored(description: TaskDescription, options: SdbcOptions) -> set[int]:

@@ -37,6 +37,7 @@ from sdbc_evolution.run.evaluators import (
     SchedulerLost,
     SchedulerUnreachable,
     add_evaluator_arguments,
+    check_evaluator_arguments,
     quiet_dask_logging,
 )
 from sdbc_evolution.run.stopping import stoppable
@@ -184,6 +185,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
     from sdbc_evolution.study.runner import Execution, StudyError, run_study
 
     try:
+        check_evaluator_arguments(args)
         preset = _preset(args)
         execution = Execution(
             workers=args.workers,

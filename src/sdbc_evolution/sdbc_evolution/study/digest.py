@@ -372,7 +372,7 @@ def write_digest(digest: StudyDigest, directory: str | Path) -> list[Path]:
     written = [directory / STUDY_JSON]
     written[0].write_bytes(_json_bytes(study_json(digest, som)))
     for task in digest.task_digests:
-        path = directory / f"{task.task}.npz"
+        path = task_file(directory, task.task, directory / STUDY_JSON)
         path.write_bytes(npz_bytes(task_arrays(task)))
         written.append(path)
     for stale in directory.glob("*.npz"):
@@ -387,6 +387,19 @@ def digest_size(directory: str | Path) -> int:
 
 
 # Reading, every field checked.
+
+
+def task_file(directory: Path, task: str, file: Path) -> Path:
+    """``directory/<task>.npz``, refused for a task name that would name a file
+    elsewhere (a path separator, a leading dot): a digest never opens or writes
+    anything outside its folder."""
+    if not task or "/" in task or "\\" in task or task.startswith(".") or "\0" in task:
+        raise _fail(
+            file,
+            f"task name {excerpt(task)} would name a file outside the digest's "
+            "folder (a path separator or a leading dot)",
+        )
+    return directory / f"{task}.npz"
 
 
 def _fail(file: Path, message: str) -> DigestError:
@@ -586,7 +599,7 @@ def read_digest(directory: str | Path) -> StudyDigest:
     preset_error = data.get("preset_error")
     command = _field(data, "command", list, file)
     task_digests = tuple(
-        _read_task(directory / f"{task}.npz", task, som) for task in tasks
+        _read_task(task_file(directory, task, file), task, som) for task in tasks
     )
     return StudyDigest(
         study_dir=str(_field(data, "study_dir", str, file)),

@@ -41,7 +41,6 @@ import queue
 import signal
 import sys
 import time
-import traceback
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
@@ -65,6 +64,7 @@ from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
 from sdbc_evolution.run.stopping import STOP_SIGNALS
+from sdbc_evolution.run.system_errors import describe_failure
 from sdbc_evolution.study.champions import reevaluate_champions
 from sdbc_evolution.study.plan import (
     LOG_FILE,
@@ -130,6 +130,10 @@ class RunOutcome:
     error: str = ""
     interrupted: bool = False
     busy: str = ""
+    system: bool = False
+    """The system refused (a full disk, no memory): every run would fail alike."""
+    by_other: bool = False
+    """Found finished by another session: counted as skipped, not as this one's."""
 
 
 @dataclass
@@ -296,7 +300,9 @@ def run_study(
                             n.startswith(f"{task}/") for n in outcome.skipped
                         ),
                         "worked_on": len(results),
-                        "finished_now": sum(r.finished for r in results),
+                        "finished_now": sum(
+                            r.finished and not r.by_other for r in results
+                        ),
                         "failed": [r.name for r in results if r.error],
                         "interrupted": aborted == "KeyboardInterrupt"
                         or any(r.interrupted for r in results),
@@ -309,6 +315,12 @@ def run_study(
                     outcome.busy.append(result.name)
                     say(f"{result.name}: left alone: {result.busy}")
                     continue
+                if result.by_other:
+                    outcome.skipped.append(result.name)
+                    continue
+                if result.system:
+                    # As in process: one line and exit 2, the study resumable.
+                    raise StudyError(f"{result.name}: {result.error}")
                 outcome.ran.append(result)
                 if result.error:
                     outcome.failed.append(result)
@@ -409,8 +421,11 @@ def execute_run(
         return RunOutcome(spec.name, 0, finished=False, busy=status.detail)
     try:
         if status.state is RunProgress.FINISHED:
+            # Finished by another session since this one looked: its run, not ours.
             lock.release()
-            return RunOutcome(spec.name, status.generations_done, finished=True)
+            return RunOutcome(
+                spec.name, status.generations_done, finished=True, by_other=True
+            )
         if status.state is RunProgress.REEVALUATE:
             outcome = RunOutcome(spec.name, status.generations_done, finished=False)
             try:
@@ -506,10 +521,11 @@ def _run_one_by_one(
         with evaluator_for(spec) as evaluator:
             try:
                 result = execute_run(spec, evaluator, advance, note)
-            except SchedulerLost:
+            except (SchedulerLost, OSError, MemoryError):
                 raise  # every run after this one would fail the same way
-            except Exception:
-                result = RunOutcome(spec.name, done, False, traceback.format_exc())
+            except Exception as error:
+                failure = describe_failure(error, "sdbc-study")
+                result = RunOutcome(spec.name, done, False, failure)
         progress.ended(spec.name, result.finished)
         results.append(result)
         if result.interrupted:
@@ -574,9 +590,13 @@ def _child(spec: RunSpec, note: dict[str, Any], messages: Any) -> None:
         result = RunOutcome(
             spec.name, run_status(spec).generations_done, False, interrupted=True
         )
-    except Exception:
+    except Exception as error:
         result = RunOutcome(
-            spec.name, run_status(spec).generations_done, False, traceback.format_exc()
+            spec.name,
+            run_status(spec).generations_done,
+            False,
+            describe_failure(error, "sdbc-study"),
+            system=isinstance(error, (OSError, MemoryError)),
         )
     messages.put(("done", spec.name, result))
 
@@ -624,7 +644,7 @@ class _Children:
             process.join()
             self.results[name] = payload
             self.progress.ended(name, payload.finished)
-            self.stopping = self.stopping or payload.interrupted
+            self.stopping = self.stopping or payload.interrupted or payload.system
 
     def interrupt(self) -> None:
         """Asks every running child to stop (they checkpoint atomically)."""
