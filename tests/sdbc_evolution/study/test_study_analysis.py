@@ -16,7 +16,7 @@ from PIL import Image
 from sdbc_evolution.run.results import read_generations
 from sdbc_evolution.sdbc.characterisation import dimension_names
 from sdbc_evolution.study.analysis import FIGURES_DIR, REPORT_FILE, TABLES_DIR
-from sdbc_evolution.study.claims import ALPHA
+from sdbc_evolution.study.claims import ALPHA, EQUIVALENCE_MARGIN
 from sdbc_evolution.study.cli import main
 from sdbc_evolution.study.plan import study_plan
 from sdbc_evolution.study.presets import load_preset, preset_from_dict
@@ -266,36 +266,54 @@ def test_the_presets_predictions_are_judged_from_the_mann_whitney_table(
         for p in predictions
         if task in p.get("tasks", [task])
     ]
+    low_margin, high_margin = EQUIVALENCE_MARGIN
     for row in rows:
-        p, effect = _pair_test(root / "report", row["task"], row["a"], row["b"])
-        assert float(row["p"]) == p
-        significant = p < ALPHA
+        p, holm, effect, low, high = _pair_test(
+            root / "report", row["task"], row["a"], row["b"]
+        )
+        assert float(row["p"]) == p and float(row["p_holm"]) == holm
+        assert (float(row["A_low"]), float(row["A_high"])) == (low, high)
+        significant = holm < ALPHA
         if row["rule"] == "above":
             expected = "held" if effect > 0.5 else "did not hold"
             expected = expected if significant else "cannot tell"
         elif row["rule"] == "no_difference":
-            expected = "did not hold" if significant else "held"
+            inside = low_margin < low and high < high_margin
+            expected = (
+                "held" if inside else "did not hold" if significant else "cannot tell"
+            )
         else:
-            expected = "did not hold" if significant and effect < 0.5 else "held"
+            expected = (
+                "held"
+                if low > low_margin
+                else "did not hold"
+                if significant and effect < 0.5
+                else "cannot tell"
+            )
         assert row["outcome"] == expected, row
     report = (root / "report" / REPORT_FILE).read_text()
     section = report.split("## The study's predictions")[1].split("\n## ")[0]
     assert section.count("| **") == len(rows)
-    assert "NS-SD+ not significantly below" not in section
-    assert "Fit not significantly below NS-SD" in section
+    assert "NS-SD+ not below" not in section
+    assert "Fit not below NS-SD by more than the margin" in section
     again = tmp_path / "again"
     digest = str(root / "report" / "digest")
     assert main(["analyse", "--from-digest", digest, "--out", str(again)]) == 0
     assert (again / REPORT_FILE).read_text() == report
 
 
-def _pair_test(report: Path, task: str, a: str, b: str) -> tuple[float, float]:
-    """p and A of ``a`` against ``b`` from the report's Mann-Whitney table."""
+def _pair_test(
+    report: Path, task: str, a: str, b: str
+) -> tuple[float, float, float, float, float]:
+    """p, Holm p, A and A's interval of ``a`` against ``b`` from the report's
+    Mann-Whitney table."""
     for row in read_csv(report / TABLES_DIR / f"mann_whitney_{task}.csv"):
+        p, holm = float(row["p"]), float(row["p_holm"])
+        effect, low, high = float(row["A"]), float(row["A_low"]), float(row["A_high"])
         if (row["a"], row["b"]) == (a, b):
-            return float(row["p"]), float(row["A"])
+            return p, holm, effect, low, high
         if (row["a"], row["b"]) == (b, a):
-            return float(row["p"]), 1 - float(row["A"])
+            return p, holm, 1 - effect, 1 - high, 1 - low
     raise AssertionError(f"no test of {a} against {b} in {task}")
 
 

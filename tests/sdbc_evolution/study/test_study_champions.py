@@ -130,6 +130,14 @@ def test_the_digest_keeps_the_champions_and_verdicts_use_them(
     assert [p.name for p in study.problems] == [digest.runs[0].name]
     assert "champions not re-evaluated" in study.problems[0].reason
 
+    # A finished task alone, as a digest part: the others' runs are left aside.
+    from sdbc_evolution.study.analysis import only_tasks
+
+    assert only_tasks(study, ["gate_escape"]).runs == study.runs
+    assert only_tasks(study, None) is study
+    with pytest.raises(FileNotFoundError, match="predator_prey"):
+        only_tasks(study, ["predator_prey"])
+
 
 def test_an_old_digest_says_it_uses_the_curve_maximum(tmp_path: Path) -> None:
     from sdbc_evolution.study.analysis import analyse_digest_dir

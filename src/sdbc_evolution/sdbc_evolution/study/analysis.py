@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -86,7 +87,7 @@ from sdbc_evolution.study.relevance import (
     relevance_table,
 )
 from sdbc_evolution.study.report import write_report
-from sdbc_evolution.study.rundirs import load_study
+from sdbc_evolution.study.rundirs import StudyData, load_study
 
 FIGURES_DIR = "figures"
 TABLES_DIR = "tables"
@@ -279,22 +280,50 @@ def analyse_task(
     )
 
 
+def only_tasks(study: StudyData, tasks: Sequence[str] | None) -> StudyData:
+    """``study`` with only the runs (and left-out runs) of ``tasks`` (None: all),
+    so that a task finished while others still run becomes a digest part of its
+    own (a part holds whole tasks, :mod:`.combine`).
+
+    Raises:
+        FileNotFoundError: A task with no usable run in ``study``.
+    """
+    if tasks is None:
+        return study
+    chosen = set(tasks)
+    missing = sorted(chosen - {r.task for r in study.runs})
+    if missing:
+        raise FileNotFoundError(
+            f"no usable run of {', '.join(missing)} under {study.root}"
+        )
+    return dataclasses.replace(
+        study,
+        runs=[r for r in study.runs if r.task in chosen],
+        problems=[
+            p
+            for p in study.problems
+            if "/" not in p.name or p.name.split("/")[0] in chosen
+        ],
+    )
+
+
 def analyse(
     study_dir: str | Path,
     out_dir: str | Path | None = None,
     settings: AnalysisSettings | None = None,
     command: list[str] | None = None,
+    tasks: Sequence[str] | None = None,
 ) -> Analysis:
     """Analyses the study in ``study_dir`` into ``out_dir`` (default
     ``study_dir/report``): writes the digest (``out_dir/digest``), then the
-    tables, figures and report from it.
+    tables, figures and report from it; only ``tasks`` if given.
 
     Raises:
-        FileNotFoundError: No usable run at all.
+        FileNotFoundError: No usable run at all (of one of ``tasks``).
     """
     settings = settings or AnalysisSettings()
     out = Path(out_dir) if out_dir is not None else Path(study_dir) / "report"
-    study = load_study(study_dir)
+    study = only_tasks(load_study(study_dir), tasks)
     digest = reduce_study(study, settings.som, str(study_dir), command)
     write_digest(digest, out / DIGEST_DIR)
     return analyse_digest(digest, out, settings, command)
@@ -326,12 +355,14 @@ def analyse_parts(
     out_dir: str | Path | None = None,
     settings: AnalysisSettings | None = None,
     command: list[str] | None = None,
+    tasks: Sequence[str] | None = None,
 ) -> Analysis:
     """Analyses one study made of parts (:mod:`.combine`): the run directories in
-    ``study_dir`` (if given) and the digests in ``digest_dirs``, e.g. the tasks of
-    a preset run in different sessions. Writes the combined digest into
-    ``out_dir/digest`` (default: ``study_dir/report``, else the first digest's
-    parent folder), then the tables, figures and report from it.
+    ``study_dir`` (if given; only those of ``tasks`` if given) and the digests in
+    ``digest_dirs``, e.g. the tasks of a preset run in different sessions.
+    Writes the combined digest into ``out_dir/digest`` (default:
+    ``study_dir/report``, else the first digest's parent folder), then the
+    tables, figures and report from it.
 
     Raises:
         FileNotFoundError: ``study_dir`` has no usable run.
@@ -340,7 +371,7 @@ def analyse_parts(
     settings = settings or AnalysisSettings()
     parts = [(str(d), read_digest(d)) for d in digest_dirs]
     if study_dir is not None:
-        study = load_study(study_dir)
+        study = only_tasks(load_study(study_dir), tasks)
         reduced = reduce_study(study, settings.som, str(study_dir), command)
         parts.insert(0, (str(study_dir), reduced))
     if out_dir is not None:

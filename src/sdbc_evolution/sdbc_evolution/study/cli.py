@@ -125,6 +125,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         help="report directory (default: STUDY/report, or the digest's parent)",
     )
+    analyse.add_argument(
+        "--task",
+        action="append",
+        help="only this task's runs of the study directory (repeatable): a task "
+        "finished while others still run, as a digest part of its own",
+    )
     compare = sub.add_parser(
         "compare",
         help="the paper's claims in two analyses: counts and changed verdicts",
@@ -241,6 +247,7 @@ def _analyse(
     out: Path | None,
     argv: list[str],
     digests: list[Path] | None = None,
+    tasks: list[str] | None = None,
 ) -> int:
     from sdbc_evolution.study.analysis import (
         REPORT_FILE,
@@ -258,12 +265,14 @@ def _analyse(
                 "analyse takes a study directory, --from-digest DIR, or both "
                 "(parts of one study)"
             )
+        if tasks and study is None:
+            return _error("--task chooses runs of a study directory: give one")
         if study is not None and not digests:
-            analysis = analyse(study, out, command=command)
+            analysis = analyse(study, out, command=command, tasks=tasks)
         elif study is None and len(digests) == 1:
             analysis = analyse_digest_dir(digests[0], out, command=command)
         else:
-            analysis = analyse_parts(study, digests, out, command=command)
+            analysis = analyse_parts(study, digests, out, command=command, tasks=tasks)
     except (FileNotFoundError, DigestError) as error:
         return _error(str(error))
     for problem in analysis.problems:
@@ -331,7 +340,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace, argv: list[str]) -> int:
     if args.command == "analyse":
-        return _analyse(args.study, args.out, argv, args.from_digest)
+        return _analyse(args.study, args.out, argv, args.from_digest, args.task)
     if args.command == "measure":
         return _measure(args)
     if args.command == "compare":

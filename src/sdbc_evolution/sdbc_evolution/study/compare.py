@@ -122,11 +122,19 @@ def changes(
 
 
 def _counts(rows: Sequence[ClaimRow]) -> str:
-    counts = Counter(r.verdict for r in rows)
+    # As the reports count (claims.totals): two claims on one test, which
+    # give the same evidence, with one verdict are one observation.
+    unique = {(r.topic, r.task, r.ours, r.verdict) for r in rows}
+    counts = Counter(verdict for *_, verdict in unique)
     return (
         f"{len(rows)} claims: {counts[Verdict.AGREE]} agree, "
         f"{counts[Verdict.DISAGREE]} disagree, "
         f"{counts[Verdict.INCONCLUSIVE]} inconclusive"
+        + (
+            f" (a test counted once: {len(rows) - len(unique)} claims share one)"
+            if len(unique) < len(rows)
+            else ""
+        )
     )
 
 

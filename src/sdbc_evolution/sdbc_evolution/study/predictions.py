@@ -14,13 +14,13 @@ This module declares them (a leaf of the study package: presets and the digest
 import it).
 :func:`sdbc_evolution.study.claims.judge_predictions` judges each on every task it
 names (default: all of the study's) with the rules of the paper's claims, on each
-run's best fitness: a two-sided Mann-Whitney test at the analysis's alpha, effect
-A = U / (n_a n_b). The report gives each its own row, apart from the paper's
-claims: *held*, *did not hold*, or *cannot tell* (a significant difference was
-predicted and the runs show none). A prediction that held under
-``no_difference`` or ``not_below`` is only the absence of a significant
-difference, which few runs give all too easily: the effect A beside it says how
-close the treatments were.
+run's best fitness: a two-sided Mann-Whitney test whose p is Holm-adjusted within
+the task's fitness tests, and Vargha and Delaney's A with its bootstrap interval.
+The report gives each its own row, apart from the paper's claims: *held*, *did not
+hold*, or *cannot tell*. ``no_difference`` holds only when A's interval lies
+inside ``claims.EQUIVALENCE_MARGIN``, ``not_below`` only when its lower end is
+above the margin's lower bound: the absence of a significant difference alone,
+which few runs give all too easily, is *cannot tell*.
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ Rule = Literal["above", "no_difference", "not_below"]
 
 RULE_TEXT: dict[str, str] = {
     "above": "{a} above {b}, significantly",
-    "no_difference": "{a} and {b} do not differ significantly",
-    "not_below": "{a} not significantly below {b}",
+    "no_difference": "{a} and {b} within the equivalence margin",
+    "not_below": "{a} not below {b} by more than the margin",
 }
 """Each rule in words."""
 
@@ -52,8 +52,9 @@ class Prediction:
     b: Annotated[str, Field(min_length=1)]
     """The second treatment, by its name in the preset."""
     rule: Rule
-    """``above``: ``a`` significantly above ``b``; ``no_difference``: no
-    significant difference; ``not_below``: ``a`` not significantly below ``b``."""
+    """``above``: ``a`` significantly above ``b``; ``no_difference``: A's
+    interval inside the equivalence margin; ``not_below``: its lower end above
+    the margin's lower bound (non-inferiority)."""
     tasks: tuple[str, ...] = ()
     """The tasks it concerns (empty: every task of the study)."""
 
