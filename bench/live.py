@@ -14,12 +14,23 @@ single trial (same genome, same seed) is then run:
   network computed here (what the simulator does, without DDS);
 - batched: :func:`sdbc_sim.run_batch` on that one trial.
 
-The trials are checked to be identical (fitness and length). The last line reads
+The trials are checked to be identical (fitness and length). Its line reads
 ``LIVE lockstep-steps/s=N unobserved=U batched=M stepper=S target=500 ok|below``
 with N the observed figure.
 
+Then live evaluation on several graphs: one generation-sized batch (``--population``
+genomes, ``--trials`` each) evaluated by the evolution node's
+:class:`~sdbc_evolution.graph.live_evaluator.LiveEvaluator` through K simulator
+graphs (``sdbc-graph``'s ``graphs: K``: a simulator and one controller process for
+the team each), for each K of ``--graphs`` (default 1 2 4); the evaluations are
+checked to be identical, and the line ``GRAPHS K=... s/generation=... speed-up=...``
+gives each K's wall time and its speed-up over one graph. On this two-core machine
+K graphs share two cores, so the speed-up is bounded by what lockstep leaves idle
+(waiting on DDS round trips), not by K.
+
 Run: ``scripts/sdbc bench live`` (options: ``--task``, ``--steps``, ``--repeat``,
-``--robots-per-process``, ``--seed``, ``--marker-period``).
+``--robots-per-process``, ``--seed``, ``--marker-period``, ``--graphs``,
+``--population``, ``--trials``; ``--graphs`` with no value skips that part).
 """
 
 from __future__ import annotations
@@ -52,6 +63,17 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument(
         "--marker-period", type=int, default=10, help="simulator's marker_period"
     )
+    parser.add_argument(
+        "--graphs",
+        type=int,
+        nargs="*",
+        default=[1, 2, 4],
+        help="numbers of simulator graphs a generation is spread over (default 1 2 4)",
+    )
+    parser.add_argument(
+        "--population", type=int, default=8, help="genomes of the generation"
+    )
+    parser.add_argument("--trials", type=int, default=2, help="trials per genome")
     return parser.parse_args()
 
 
@@ -194,6 +216,119 @@ def time_live(args, genome: np.ndarray, tmp: Path) -> dict[str, list]:
     return results
 
 
+def time_graphs(args, task, tmp: Path) -> dict[int, tuple[float, dict]]:
+    """{K: (seconds, evaluation)} of one generation-sized batch evaluated through
+    K simulator graphs, for each K of ``--graphs``."""
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.node import Node
+    from sdbc_evolution.graph.client import GraphClient
+    from sdbc_evolution.graph.graph_file import (
+        graph_namespaces,
+        load_graph_file,
+        trial_graph,
+    )
+    from sdbc_evolution.graph.live_evaluator import LiveEvaluator
+    from sdbc_evolution.graph.processes import ProcessGraph, child_environment
+    from sdbc_evolution.run.evaluators import TaskSpec
+
+    rng = np.random.default_rng(args.seed)
+    genomes = rng.uniform(-1.0, 1.0, (args.population, task.genome_length))
+    seeds = rng.integers(0, 2**31 - 1, (args.population, args.trials))
+    config = {"max_steps": args.steps}
+    spec = TaskSpec(args.task, config)
+    results = {}
+    rclpy.init()
+    node = Node("bench_live_graphs")
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        for k in args.graphs:
+            work = tmp / f"graphs{k}"
+            work.mkdir()
+            path = work / "graph.yaml"
+            path.write_text(
+                yaml.safe_dump(
+                    trial_graph(
+                        args.task,
+                        genomes[0],
+                        config,
+                        launcher={
+                            "graphs": k,
+                            "robots_per_process": task.layout.n_controlled,
+                        },
+                    )
+                )
+            )
+            graph_file = load_graph_file(path)
+            env = child_environment()
+            env.setdefault("ROS_HOME", str(tmp / "ros_home"))
+            namespace = f"bench{k}"
+            graph = ProcessGraph.from_graph_file(
+                graph_file, work, log_dir=work / "logs", env=env, namespace=namespace
+            )
+            graph.start()
+            try:
+                clients = [
+                    GraphClient(
+                        node,
+                        task,
+                        args.task,
+                        config,
+                        timeout=120.0,
+                        namespace="/" + "/".join(p for p in (namespace, sub) if p),
+                    )
+                    for sub in graph_namespaces(graph_file.settings)
+                ]
+                for client in clients:
+                    client.wait_for_graph(120.0)
+                with LiveEvaluator(spec, clients) as evaluator:
+                    evaluator.evaluate(genomes[:1], seeds[:1, :1])  # warm-up
+                    t0 = time.perf_counter()
+                    evaluation = evaluator.evaluate(genomes, seeds)
+                    results[k] = (time.perf_counter() - t0, evaluation)
+            finally:
+                graph.stop()
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return results
+
+
+def report_graphs(args, task, tmp: Path) -> None:
+    results = time_graphs(args, task, tmp)
+    first = min(results)
+    reference = results[first][1]
+    for k, (_, evaluation) in results.items():
+        for name in ("fitness", "trial_fitness"):
+            if not np.array_equal(getattr(evaluation, name), getattr(reference, name)):
+                sys.exit(f"{k} graphs: {name} differs from {first} graph(s)")
+        for key, values in evaluation.behaviours.items():
+            if not np.array_equal(values, reference.behaviours[key]):
+                sys.exit(f"{k} graphs: behaviour {key} differs from {first} graph(s)")
+    print(
+        f"{args.task}: a generation of {args.population} genomes x {args.trials} "
+        f"trials (max_steps {args.steps}) through K simulator graphs, "
+        f"{os.cpu_count()} cores; evaluations identical"
+    )
+    base = results[first][0]
+    for k, (seconds, _) in sorted(results.items()):
+        print(
+            f"  K={k}: {seconds:7.1f} s per generation, speed-up "
+            f"{base / seconds:4.2f} over K={first}"
+        )
+    print(
+        "GRAPHS "
+        + " ".join(
+            f"K={k}:s/generation={seconds:.1f},speed-up={base / seconds:.2f}"
+            for k, (seconds, _) in sorted(results.items())
+        )
+    )
+
+
 def main() -> None:
     args = parse_args()
     # A graph of its own: this machine only, a domain no other graph is likely on.
@@ -234,6 +369,9 @@ def main() -> None:
         f"LIVE lockstep-steps/s={observed:.0f} unobserved={medians['unobserved']:.0f} "
         f"batched={batched:.0f} stepper={stepper:.0f} target={TARGET:.0f} {verdict}"
     )
+    if args.graphs:
+        with tempfile.TemporaryDirectory(prefix="bench-live-graphs-") as tmp:
+            report_graphs(args, task, Path(tmp))
 
 
 if __name__ == "__main__":

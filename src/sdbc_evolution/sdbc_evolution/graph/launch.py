@@ -36,6 +36,7 @@ Exit status: 0 done, 1 a node process failed or a trial was aborted, 2 bad input
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import tempfile
@@ -52,6 +53,7 @@ from sdbc_evolution.graph.graph_file import (
     check_namespace,
     graph_namespaces,
     has_genome,
+    join_namespace,
     load_graph_file,
 )
 from sdbc_evolution.graph.processes import ProcessGraph
@@ -111,6 +113,39 @@ def _wait_for_recorder(graph: ProcessGraph, node: Any, timeout: float) -> None:
             raise RuntimeError(f"node processes ended before the first trial: {dead}")
         if time.monotonic() > deadline:
             raise RuntimeError(f"the recorder was not ready within {timeout:g} s")
+
+
+DISCOVERY_WAIT = 2.0
+"""Seconds the launcher looks for another graph in its namespace before starting:
+on one machine, DDS discovery of running nodes takes well under a second."""
+
+
+def busy_simulators(namespace: str, graph_file: GraphFile) -> list[str]:
+    """The simulator services of this graph's namespaces that some node already
+    offers in the DDS domain (another graph, whose answers would be taken for this
+    one's), looked for during :data:`DISCOVERY_WAIT` seconds."""
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
+    from sdbc_sim.nodes.interface import RUN_TRIAL_SERVICE
+
+    wanted = {
+        "/" + join_namespace(namespace, sub, RUN_TRIAL_SERVICE)
+        for sub in graph_namespaces(graph_file.settings)
+    }
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = Node("graph_launcher_probe", context=context)
+        deadline = time.monotonic() + DISCOVERY_WAIT
+        busy: set[str] = set()
+        while not busy and time.monotonic() < deadline:
+            time.sleep(0.1)
+            busy = wanted & {name for name, _ in node.get_service_names_and_types()}
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    return sorted(busy)
 
 
 def run_trials(
@@ -223,6 +258,15 @@ def _main(args: argparse.Namespace) -> int:
 def _run(graph: ProcessGraph, args: argparse.Namespace, graph_file: GraphFile) -> int:
     names = ", ".join(graph.processes)
     where = f" in /{args.namespace}" if args.namespace else ""
+    if busy := busy_simulators(args.namespace, graph_file):
+        domain = os.environ.get("ROS_DOMAIN_ID", "0")
+        print(
+            f"sdbc-graph: error: another graph runs in ROS_DOMAIN_ID {domain}: "
+            f"{', '.join(busy)} is offered already; give this graph a namespace of "
+            "its own (--namespace) or another ROS_DOMAIN_ID",
+            file=sys.stderr,
+        )
+        return 2
     print(f"sdbc-graph: starting {names}{where}", file=sys.stderr)
     status = 0
     graph.start()
