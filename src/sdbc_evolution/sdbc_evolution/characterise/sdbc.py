@@ -203,6 +203,7 @@ class OptionedSdbcExtractor:
         self._step = 0
 
     def start(self, description: TaskDescription, n_trials: int) -> None:
+        """Prepares for a batch of ``n_trials`` trials of the described task."""
         self._features = StepFeatures(
             description, fixed_static_geometry=self.fixed_static_geometry
         )
@@ -246,6 +247,7 @@ class OptionedSdbcExtractor:
         return self._features
 
     def observe(self, state: TaskState) -> None:
+        """Adds the step ``state.step`` of every active trial."""
         layout = self._started()
         features = self._step_features()
         description = features.description

@@ -187,6 +187,7 @@ class Experiment:
 
     @property
     def finished(self) -> bool:
+        """Whether every generation of the run has been done."""
         return self.state.generation >= self.generations
 
     @classmethod

@@ -53,6 +53,7 @@ class Footprint:
 
     @property
     def total(self) -> int:
+        """Bytes in all: trials and arrays."""
         return self.trials + self.arrays
 
 

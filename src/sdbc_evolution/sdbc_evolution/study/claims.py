@@ -104,6 +104,8 @@ PAPER_RELEVANCE: dict[str, tuple[PaperFeature, ...]] = {
 
 
 class Verdict(str, Enum):
+    """How our numbers stand to a claim of the paper."""
+
     AGREE = "agree"
     DISAGREE = "disagree"
     INCONCLUSIVE = "inconclusive"
@@ -148,6 +150,8 @@ def above(test: PairTest, alpha: float = ALPHA) -> Verdict:
 
 
 def no_difference(test: PairTest, alpha: float = ALPHA) -> Verdict:
+    """The verdict on a claim of no difference: agree unless the test is significant at
+    ``alpha``."""
     return Verdict.AGREE if test.p >= alpha else Verdict.DISAGREE
 
 
@@ -407,6 +411,7 @@ class PredictionResult:
 
     @property
     def outcome(self) -> str:
+        """The verdict in the words of a prediction (``OUTCOME``)."""
         return OUTCOME[self.verdict]
 
 
