@@ -10,7 +10,31 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
     ],
-    install_requires=["setuptools"],
+    python_requires=">=3.10",
+    # The method, the GA, sdbc-evolve, sdbc-study and sdbc-conformance. The ROS
+    # nodes and the live graph need rclpy and sdbc_msgs from ROS 2 (scripts/sdbc
+    # setup); their console scripts say so when they are missing.
+    install_requires=[
+        "sdbc_sim",
+        "numpy>=2.0",
+        "scipy>=1.11",
+        "scikit-learn>=1.4",
+        "threadpoolctl>=3.1",
+        "pydantic>=2.0",
+        "pyyaml>=6.0",
+        "tqdm>=4.60",
+        "minisom>=2.3",
+        "matplotlib>=3.7",
+    ],
+    # Imported only by the part that needs them.
+    extras_require={
+        # DaskEvaluator (sdbc-evolve --scheduler, sdbc-study --scheduler).
+        "dask": ["dask[distributed]>=2024.1"],
+        # The dcor relevance measure (treatments naming relevance: dcor).
+        "dcor": ["dcor>=0.6"],
+        # Bags written by the recorder node (which also needs ROS 2).
+        "bags": ["rosbags>=0.10"],
+    },
     zip_safe=True,
     maintainer="sdbc team",
     maintainer_email="sdbc@example.org",
@@ -21,10 +45,10 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "characteriser_node = sdbc_evolution.nodes.characteriser_node:main",
-            "evolution_node = sdbc_evolution.nodes.evolution_node:main",
-            "recorder = sdbc_evolution.nodes.recorder_node:main",
-            "sdbc-graph = sdbc_evolution.graph.launch:main",
+            "characteriser_node = sdbc_evolution.nodes.entry:characteriser_node",
+            "evolution_node = sdbc_evolution.nodes.entry:evolution_node",
+            "recorder = sdbc_evolution.nodes.entry:recorder",
+            "sdbc-graph = sdbc_evolution.nodes.entry:graph",
             "sdbc-evolve = sdbc_evolution.run.cli:main",
             "sdbc-study = sdbc_evolution.study.cli:main",
             "sdbc-conformance = sdbc_evolution.conformance:main",

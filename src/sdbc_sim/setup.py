@@ -10,7 +10,20 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
     ],
-    install_requires=["setuptools"],
+    python_requires=">=3.10",
+    # What the engine, the tasks and the task-state formalism import. The ROS
+    # nodes' rclpy and sdbc_msgs come from ROS 2 (scripts/sdbc setup), not from
+    # pip: their console scripts say so when they are missing. Floors: the
+    # oldest release line whose API the code uses (pymunk.batch's fields of 7,
+    # numpy 2's scalar and copy rules, pydantic 2's dataclasses and strict mode).
+    install_requires=[
+        "numpy>=2.0",
+        "pymunk>=7.0",
+        "numba>=0.60",
+        "pydantic>=2.0",
+        "pyyaml>=6.0",
+        "matplotlib>=3.7",
+    ],
     zip_safe=True,
     maintainer="sdbc team",
     maintainer_email="sdbc@example.org",
@@ -21,8 +34,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "simulator_node = sdbc_sim.nodes.simulator_node:main",
-            "controller_node = sdbc_sim.nodes.controller_node:main",
+            "simulator_node = sdbc_sim.nodes.entry:simulator_node",
+            "controller_node = sdbc_sim.nodes.entry:controller_node",
         ],
     },
 )

@@ -362,7 +362,7 @@ _ELSEWHERE = """\
 import sys, numpy as np
 from sdbc_sim.engine import run_batch
 from sdbc_sim.tasks import make_task
-from sdbc_sim.nodes.interface import parse_task_config
+from sdbc_sim.tasks import parse_task_config
 task = make_task(sys.argv[1], **parse_task_config(sys.argv[2]))
 g = np.array([float.fromhex(v) for v in sys.argv[4:]])[None]
 r = run_batch(task, g, np.array([[int(sys.argv[3])]]))
@@ -374,7 +374,7 @@ print(r.fitness[0, 0].hex(), r.length[0, 0], *[v.hex() for v in c])
 
 def check_process(subject: Subject) -> str:
     """The ``process`` check (module docstring); a summary of what passed."""
-    from sdbc_sim.nodes.interface import format_task_config
+    from sdbc_sim.tasks import format_task_config
 
     g, t = _picks(subject)[-1]
     args = [
@@ -540,7 +540,7 @@ def run_checks(
 def main(argv: Sequence[str] | None = None) -> int:
     """``sdbc-conformance``: runs the checks on a task; the exit status of the module
     docstring."""
-    from sdbc_sim.nodes.interface import parse_task_config
+    from sdbc_sim.tasks import parse_task_config
 
     parser = argparse.ArgumentParser(
         prog="sdbc-conformance",

@@ -28,6 +28,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sdbc_sim.compiled import compiled
+
+# Re-exported: the engine's callers sum trials up with it.
+from sdbc_sim.fitness import FITNESS_MEANS as FITNESS_MEANS
+from sdbc_sim.fitness import HARMONIC_FLOOR as HARMONIC_FLOOR
+from sdbc_sim.fitness import controller_fitness as controller_fitness
 from sdbc_sim.kinematic import KinematicTrials
 from sdbc_sim.network import TeamNetworks, check_genomes
 from sdbc_sim.observer import NetworkObserver, Observer
@@ -41,9 +46,6 @@ from sdbc_sim.physics import (
 from sdbc_sim.task import BodyState, Task
 from sdbc_sim.task_state import GroupState, TaskState
 
-FITNESS_MEANS = ("harmonic", "arithmetic")
-HARMONIC_FLOOR = 1e-4
-"""A trial's fitness counts as at least this in the harmonic mean (authors' code)."""
 PHYSICS_MODELS: dict[str, type[TrialSpaces] | type[KinematicTrials]] = {
     "rigid": TrialSpaces,
     "kinematic": KinematicTrials,
@@ -446,22 +448,6 @@ class BatchResult:
     length: np.ndarray
     controller_fitness: np.ndarray
     controller_characterisation: np.ndarray
-
-
-def controller_fitness(fitness: np.ndarray, mean: str = "harmonic") -> np.ndarray:
-    """(G,) fitness of each controller from its trials' (G, T) fitness.
-
-    harmonic: T / sum_t 1 / max(F_t, 1e-4); arithmetic: sum_t F_t / T.
-    """
-    if mean == "harmonic":
-        return fitness.shape[1] / np.sum(
-            1.0 / np.maximum(fitness, HARMONIC_FLOOR), axis=1
-        )
-    if mean == "arithmetic":
-        return fitness.mean(axis=1)
-    raise ValueError(
-        f"unknown fitness mean {mean!r}; known: {', '.join(FITNESS_MEANS)}"
-    )
 
 
 def run_batch(

@@ -25,6 +25,9 @@ from typing import Any
 
 import numpy as np
 
+# The generators a checkpoint may name: the ask/tell object's (re-exported).
+from sdbc_evolution.ga.search import BIT_GENERATORS as BIT_GENERATORS
+from sdbc_evolution.ga.search import generator_from_state as restored_generator
 from sdbc_evolution.run.results import atomic_write_bytes, load_npz, npz_bytes
 
 FORMAT_VERSION = 1
@@ -42,10 +45,6 @@ _ARRAYS = (
     "archive_generation",
     "weights",
 )
-
-
-BIT_GENERATORS = ("PCG64", "PCG64DXSM", "Philox", "SFC64", "MT19937")
-"""numpy bit generators a checkpoint may name."""
 
 
 class CheckpointError(ValueError):
@@ -222,13 +221,8 @@ def _check_shapes(path: Path, c: Checkpoint) -> None:
 def generator_from_state(state: dict[str, Any]) -> np.random.Generator:
     """A generator restored to a saved ``bit_generator.state``."""
     try:
-        name = state["bit_generator"]
-        if name not in BIT_GENERATORS:
-            raise ValueError(f"unknown bit generator {name!r}")
-        bit_generator = getattr(np.random, name)()
-        bit_generator.state = state
-    except (AttributeError, KeyError, TypeError, ValueError) as error:
+        return restored_generator(state)
+    except ValueError as error:
         raise CheckpointError(
             f"corrupt generator state in checkpoint: {error}"
         ) from None
-    return np.random.Generator(bit_generator)

@@ -27,17 +27,17 @@ import yaml
 from pydantic import BeforeValidator
 from sdbc_sim.settings import (
     Field,
-    Fraction,
     NonNegativeInt,
-    PositiveFloat,
     PositiveInt,
     SettingsError,
-    check,
     load,
     settings,
     to_plain,
 )
 
+# GaConfig is the ask/tell object's (sdbc_evolution.ga.breeding); re-exported here
+# as a section of the configuration.
+from sdbc_evolution.ga.breeding import GaConfig as GaConfig
 from sdbc_evolution.ga.novelty import NoveltyConfig
 from sdbc_evolution.ga.treatments import PRESETS, TreatmentSpec, parse_treatment
 from sdbc_evolution.sdbc.standardise import StandardisationSettings
@@ -58,47 +58,6 @@ QUICKSTART_POPULATION = 50
 """Population of the quick-start experiment."""
 QUICKSTART_REEVALUATION = 20
 """Re-evaluation trials of each generation's best in the quick-start experiment."""
-
-
-@settings
-class GaConfig:
-    """The generational GA."""
-
-    population_size: Annotated[int, Field(ge=2)] = 200
-    """Individuals per generation."""
-    tournament_size: PositiveInt = 5
-    """Contestants per tournament when choosing a parent."""
-    elites: NonNegativeInt = 5
-    """Best individuals copied unchanged into the next generation (and evaluated
-    again there in fresh trials)."""
-    mutation_sigma: PositiveFloat = 0.5
-    """Standard deviation of the Gaussian perturbation of a mutating gene."""
-    mutation_probability: Fraction = 0.05
-    """Chance that each gene mutates."""
-    gene_min: float = -1.0
-    """Lower bound of every gene (network weight)."""
-    gene_max: float = 1.0
-    """Upper bound of every gene."""
-    max_redraws: PositiveInt = 100
-    """Out-of-bounds mutation draws allowed per gene before a uniform value in the
-    bounds is taken instead (ECJ's default)."""
-
-    def __post_init__(self) -> None:
-        # Named as the population's problem: a population of 3 to 5 is too small
-        # for the default tournament and elites, which the user may not have set.
-        need = max(self.tournament_size, self.elites + 1)
-        check(
-            self.population_size >= need,
-            "population_size",
-            f"{self.population_size} is too small: must be at least {need} for "
-            f"tournament_size={self.tournament_size} and elites={self.elites} "
-            "(or set those lower)",
-        )
-        check(
-            self.gene_min < self.gene_max,
-            "gene_min",
-            f"must be below gene_max={self.gene_max}",
-        )
 
 
 @settings

@@ -30,20 +30,18 @@ for (``ResultsDirectory.verify``) and names the first damaged file.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from sdbc_sim.engine import controller_fitness
 
 from sdbc_evolution.characterise.evaluation import SDBC, TASK
-from sdbc_evolution.ga.archive import NoveltyArchive
-from sdbc_evolution.ga.mutation import gaussian_mutation
 from sdbc_evolution.ga.rankings.nsga2 import positions
-from sdbc_evolution.ga.selection import elites, tournament_selection
-from sdbc_evolution.ga.treatments import GenerationScores, score_generation
+from sdbc_evolution.ga.search import TRIAL_SEED_BOUND, NoveltySearch, run_generators
+from sdbc_evolution.ga.treatments import GenerationScores
 from sdbc_evolution.run.checkpoint import (
     Checkpoint,
     CheckpointError,
@@ -55,9 +53,6 @@ from sdbc_evolution.run.config import ExperimentConfig, dump_config
 from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
 from sdbc_evolution.run.lock import RunLock
 from sdbc_evolution.run.results import GenerationRecord, ResultsDirectory, RunDamaged
-
-TRIAL_SEED_BOUND = 2**63 - 1
-"""Trial seeds are drawn uniformly from [0, 2^63 - 1)."""
 
 
 class _PhaseClock:
@@ -115,31 +110,6 @@ def results_directory(
     return ResultsDirectory(out_dir, info.sdbc_names, weight_names)
 
 
-@dataclass
-class RunState:
-    """Everything that carries over from one generation to the next.
-
-    Attributes:
-        generation: Generations completed (the index of the next one).
-        population: (N, W) genomes of the next generation.
-        parent: (N,) index in the previous generation each came from (-1: none).
-        elite: (N,) bool: copied unchanged from the previous generation.
-        archive: The novelty archive.
-        weights: NS-SD+ weights in force, or None.
-        rng: The GA's generator.
-        reevaluation_rng: The generator of re-evaluation trial seeds.
-    """
-
-    generation: int
-    population: np.ndarray
-    parent: np.ndarray
-    elite: np.ndarray
-    archive: NoveltyArchive
-    weights: np.ndarray | None
-    rng: np.random.Generator
-    reevaluation_rng: np.random.Generator
-
-
 class Experiment:
     """One run of one treatment on one task; use :meth:`create` or :meth:`resume`.
 
@@ -147,7 +117,9 @@ class Experiment:
         config: The resolved configuration.
         evaluator: Where trials run.
         info: The task's sizes and SDBC dimension names.
-        state: The state before the next generation.
+        search: The GA's state before the next generation: the ask/tell object
+            (population, archive, weights, the GA's generator).
+        reevaluation_rng: The generator of re-evaluation trial seeds.
         results: The output directory.
         lock: The held lock of the output directory; :meth:`close` (or the end
             of a ``with`` block, or the process) releases it.
@@ -158,14 +130,16 @@ class Experiment:
         config: ExperimentConfig,
         evaluator: Evaluator,
         info: TaskInfo,
-        state: RunState,
+        search: NoveltySearch,
+        reevaluation_rng: np.random.Generator,
         results: ResultsDirectory,
         lock: RunLock,
     ) -> None:
         self.config = config
         self.evaluator = evaluator
         self.info = info
-        self.state = state
+        self.search = search
+        self.reevaluation_rng = reevaluation_rng
         self.results = results
         self.lock = lock
         self.timings: dict[str, float] = {}
@@ -181,6 +155,12 @@ class Experiment:
         self.close()
 
     @property
+    def state(self) -> NoveltySearch:
+        """The GA's state (generation, population, archive, weights, generator):
+        :attr:`search`, under the name callers know."""
+        return self.search
+
+    @property
     def generations(self) -> int:
         """Generations the run is configured to reach."""
         return self.config.resolved_generations
@@ -188,7 +168,7 @@ class Experiment:
     @property
     def finished(self) -> bool:
         """Whether every generation of the run has been done."""
-        return self.state.generation >= self.generations
+        return self.search.generation >= self.generations
 
     @classmethod
     def create(
@@ -219,25 +199,11 @@ class Experiment:
                 f"{results.path} already holds a run: resume it (--resume) or choose "
                 "another output directory"
             )
-        root = np.random.SeedSequence(config.seed)
-        ga_seed, reevaluation_seed = root.spawn(2)
-        rng = np.random.default_rng(ga_seed)
-        n, ga = config.ga.population_size, config.ga
-        population = rng.uniform(ga.gene_min, ga.gene_max, (n, info.genome_length))
-        state = RunState(
-            generation=0,
-            population=population,
-            parent=np.full(n, -1, dtype=np.int64),
-            elite=np.zeros(n, dtype=bool),
-            archive=NoveltyArchive(
-                capacity=config.novelty.archive_size,
-                probability=config.novelty.archive_probability,
-            ),
-            weights=None,
-            rng=rng,
-            reevaluation_rng=np.random.default_rng(reevaluation_seed),
+        ga_rng, reevaluation_rng = run_generators(config.seed)
+        search = _search(config, info, ga_rng)
+        experiment = cls(
+            config, evaluator, info, search, reevaluation_rng, results, lock
         )
-        experiment = cls(config, evaluator, info, state, results, lock)
         try:
             results.create(dump_config(config))
             save_checkpoint(results.checkpoint_path, experiment._checkpoint())
@@ -311,25 +277,33 @@ class Experiment:
             results.truncate(checkpoint.generation)
         except (OSError, ValueError) as error:
             raise CheckpointError(f"cannot resume in {results.path}: {error}") from None
-        archive = NoveltyArchive(
-            capacity=config.novelty.archive_size,
-            probability=config.novelty.archive_probability,
-            behaviours=checkpoint.archive_behaviours,
-            fitness=checkpoint.archive_fitness,
-            generation=checkpoint.archive_generation,
-        )
-        state = RunState(
-            generation=checkpoint.generation,
-            population=checkpoint.population,
-            parent=checkpoint.parent.astype(np.int64),
-            elite=checkpoint.elite.astype(bool),
-            archive=archive,
-            weights=checkpoint.weights,
-            rng=generator_from_state(checkpoint.ga_rng),
-            reevaluation_rng=generator_from_state(checkpoint.reevaluation_rng),
-        )
+        # The checkpoint was checked against the configuration: its state is
+        # the search's, without the best so far (the run's outputs keep that).
+        search = _search(config, info, config.seed)
+        try:
+            search.load_state_dict(
+                {
+                    "generation": np.array(checkpoint.generation),
+                    "population": checkpoint.population,
+                    "parent": checkpoint.parent,
+                    "elite": checkpoint.elite,
+                    "archive_behaviours": checkpoint.archive_behaviours,
+                    "archive_fitness": checkpoint.archive_fitness,
+                    "archive_generation": checkpoint.archive_generation,
+                    "weights": np.zeros(0)
+                    if checkpoint.weights is None
+                    else checkpoint.weights,
+                    "has_weights": np.array(checkpoint.weights is not None),
+                    "rng": np.array(json.dumps(checkpoint.ga_rng)),
+                }
+            )
+        except ValueError as error:
+            raise CheckpointError(
+                f"checkpoint {results.checkpoint_path}: {error}"
+            ) from None
+        reevaluation_rng = generator_from_state(checkpoint.reevaluation_rng)
         results.write_config(dump_config(config))
-        return cls(config, evaluator, info, state, results, lock)
+        return cls(config, evaluator, info, search, reevaluation_rng, results, lock)
 
     def run(
         self, on_generation: Callable[[GenerationRecord], None] | None = None
@@ -347,30 +321,18 @@ class Experiment:
         (the population's trials), "scoring" (standardisation, weights, novelty,
         archive, ranking), "breeding", "reevaluation", "outputs" and "checkpoint".
         """
-        config, state = self.config, self.state
+        config, search = self.config, self.search
         clock = _PhaseClock()
-        g = state.generation
-        population = state.population
+        g = search.generation
+        population, parent, elite = search.population, search.parent, search.elite
         n = population.shape[0]
-        seeds = state.rng.integers(
-            0, TRIAL_SEED_BOUND, size=(n, config.evaluation.trials), dtype=np.int64
-        )
+        seeds = search.trial_seeds(config.evaluation.trials)
         evaluation = self.evaluator.evaluate(population, seeds)
         self._check_evaluation(evaluation, n)
         clock.lap("evaluation")
-        scores = score_generation(
-            config.treatment,
-            evaluation,
-            state.archive,
-            state.weights,
-            g,
-            state.rng,
-            config.novelty,
-            config.standardisation,
-            config.weighting,
-        )
+        scores = search.score(evaluation.fitness, evaluation.behaviours)
         clock.lap("scoring")
-        children, parent, elite = self._breed(population, scores)
+        search.breed()
         clock.lap("breeding")
         best = int(np.argmax(evaluation.fitness))
         reevaluated_fitness, reevaluated_mean = self._reevaluate(population[best])
@@ -382,20 +344,16 @@ class Experiment:
             median_fitness=float(np.median(evaluation.fitness)),
             best_index=best,
             best_novelty=float(np.max(scores.novelty)),
-            archive_size=len(state.archive),
+            archive_size=len(search.archive),
             reevaluated_fitness=reevaluated_fitness,
             reevaluated_mean=reevaluated_mean,
             wall_time=clock.total(),
             evaluation_time=clock.phases["evaluation"] + clock.phases["reevaluation"],
             weights=scores.weights,
         )
-        self.results.append_generation(
-            record, self._individuals(evaluation, scores), population[best]
-        )
+        individuals = self._individuals(evaluation, scores, parent, elite)
+        self.results.append_generation(record, individuals, population[best])
         clock.lap("outputs")
-        state.generation = g + 1
-        state.population, state.parent, state.elite = children, parent, elite
-        state.weights = scores.weights
         save_checkpoint(self.results.checkpoint_path, self._checkpoint())
         clock.lap("checkpoint")
         self.timings = clock.phases
@@ -421,34 +379,11 @@ class Experiment:
         if not np.isfinite(evaluation.fitness).all():
             raise ExperimentError("the evaluator returned NaN or infinite fitness")
 
-    def _breed(
-        self, population: np.ndarray, scores: GenerationScores
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        ga, rng = self.config.ga, self.state.rng
-        n = population.shape[0]
-        kept = elites(scores.order, ga.elites)
-        parents = tournament_selection(
-            positions(scores.order), n - ga.elites, ga.tournament_size, rng
-        )
-        mutants = gaussian_mutation(
-            population[parents],
-            rng,
-            sigma=ga.mutation_sigma,
-            probability=ga.mutation_probability,
-            low=ga.gene_min,
-            high=ga.gene_max,
-            max_redraws=ga.max_redraws,
-        )
-        children = np.concatenate([population[kept], mutants])
-        parent = np.concatenate([kept, parents])
-        elite = np.arange(n) < ga.elites
-        return children, parent, elite
-
     def _reevaluate(self, genome: np.ndarray) -> tuple[float, float]:
         trials = self.config.evaluation.reevaluation_trials
         if trials == 0:
             return float("nan"), float("nan")
-        seeds = self.state.reevaluation_rng.integers(
+        seeds = self.reevaluation_rng.integers(
             0, TRIAL_SEED_BOUND, size=(trials, 1), dtype=np.int64
         )
         # One row per trial lets the evaluator spread the trials over its workers;
@@ -464,9 +399,12 @@ class Experiment:
         return None if characterisation is None else characterisation.key
 
     def _individuals(
-        self, evaluation: Evaluation, scores: GenerationScores
+        self,
+        evaluation: Evaluation,
+        scores: GenerationScores,
+        parent: np.ndarray,
+        elite: np.ndarray,
     ) -> dict[str, np.ndarray]:
-        state = self.state
         extra = {}
         key = self._behaviour_key
         if key not in (None, SDBC, TASK):
@@ -484,13 +422,13 @@ class Experiment:
             "front": scores.front.astype(np.int16),
             "rank": positions(scores.order).astype(np.int32),
             "archived": scores.archived,
-            "parent": state.parent.astype(np.int32),
-            "elite": state.elite,
+            "parent": parent.astype(np.int32),
+            "elite": elite,
             **extra,
         }
 
     def _checkpoint(self) -> Checkpoint:
-        state = self.state
+        state = self.search
         return Checkpoint(
             generation=state.generation,
             config=self.config.to_dict(),
@@ -502,5 +440,21 @@ class Experiment:
             archive_generation=state.archive.generation,
             weights=state.weights,
             ga_rng=dict(state.rng.bit_generator.state),
-            reevaluation_rng=dict(state.reevaluation_rng.bit_generator.state),
+            reevaluation_rng=dict(self.reevaluation_rng.bit_generator.state),
         )
+
+
+def _search(
+    config: ExperimentConfig, info: TaskInfo, seed: int | np.random.Generator
+) -> NoveltySearch:
+    """The ask/tell object of a run of ``config``."""
+    return NoveltySearch(
+        config.treatment,
+        genome_length=info.genome_length,
+        seed=seed,
+        ga=config.ga,
+        novelty=config.novelty,
+        standardisation=config.standardisation,
+        weighting=config.weighting,
+        fitness_mean=config.evaluation.fitness_mean,
+    )

@@ -27,11 +27,9 @@ QoS, chosen on purpose:
 from __future__ import annotations
 
 import sys
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import rclpy.utilities
-import yaml
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -40,7 +38,12 @@ from rclpy.qos import (
 )
 
 from sdbc_sim.task import Task
+
+# The task_config parameter's text, re-exported: it lives in sdbc_sim.tasks so
+# that sdbc-conformance reads task settings without ROS 2.
+from sdbc_sim.tasks import format_task_config as format_task_config
 from sdbc_sim.tasks import make_task
+from sdbc_sim.tasks import parse_task_config as parse_task_config
 
 SIMULATOR_NODE = "simulator"
 """Name of the simulator node."""
@@ -136,36 +139,6 @@ def robot_namespace(robot: int) -> str:
 def robot_topic(robot: int, topic: str) -> str:
     """``robot_<i>/<topic>``, relative to the simulator's namespace."""
     return f"{robot_namespace(robot)}/{topic}"
-
-
-def parse_task_config(text: str) -> dict[str, Any]:
-    """The task setting overrides held by a ``task_config`` parameter.
-
-    Args:
-        text: A YAML (or JSON) mapping of task settings, e.g. ``{max_steps: 300}``;
-            empty means the task's defaults.
-
-    Raises:
-        ValueError: If the text is not YAML or not a mapping with string keys.
-    """
-    try:
-        data = yaml.safe_load(text) if text.strip() else {}
-    except yaml.YAMLError as error:
-        raise ValueError(f"task_config: not valid YAML ({error})") from None
-    if data is None:
-        return {}
-    if not isinstance(data, Mapping) or not all(isinstance(k, str) for k in data):
-        raise ValueError(
-            f"task_config: expected a mapping of task settings such as "
-            f"'{{max_steps: 300}}', got {text!r}"
-        )
-    return dict(data)
-
-
-def format_task_config(overrides: Mapping[str, Any]) -> str:
-    """The ``task_config`` parameter text for ``overrides`` (inverse of
-    :func:`parse_task_config`)."""
-    return yaml.safe_dump(dict(overrides), default_flow_style=True).strip()
 
 
 def build_task(name: str, task_config: str) -> Task:

@@ -32,6 +32,8 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from sdbc_sim.settings import SettingsError, is_settings, load
 from sdbc_sim.task import Task
 
@@ -222,3 +224,33 @@ def task_settings(task_class: type[Task], overrides: Mapping[str, Any]) -> Any:
             settings' names: prefix them with where they came from).
     """
     return load(task_class.config_class, overrides)
+
+
+def parse_task_config(text: str) -> dict[str, Any]:
+    """The task setting overrides held by a ``task_config`` parameter.
+
+    Args:
+        text: A YAML (or JSON) mapping of task settings, e.g. ``{max_steps: 300}``;
+            empty means the task's defaults.
+
+    Raises:
+        ValueError: If the text is not YAML or not a mapping with string keys.
+    """
+    try:
+        data = yaml.safe_load(text) if text.strip() else {}
+    except yaml.YAMLError as error:
+        raise ValueError(f"task_config: not valid YAML ({error})") from None
+    if data is None:
+        return {}
+    if not isinstance(data, Mapping) or not all(isinstance(k, str) for k in data):
+        raise ValueError(
+            f"task_config: expected a mapping of task settings such as "
+            f"'{{max_steps: 300}}', got {text!r}"
+        )
+    return dict(data)
+
+
+def format_task_config(overrides: Mapping[str, Any]) -> str:
+    """The ``task_config`` parameter text for ``overrides`` (inverse of
+    :func:`parse_task_config`)."""
+    return yaml.safe_dump(dict(overrides), default_flow_style=True).strip()
