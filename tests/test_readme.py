@@ -44,8 +44,11 @@ def test_the_readme_example_runs_as_written(tmp_path: Path) -> None:
     )
     assert done.returncode == 0, done.stderr
     printed = done.stdout.splitlines()
-    assert re.fullmatch(r"\d+ dimensions, e\.g\. .+", printed[0]), printed
-    assert printed[1].startswith("fitness [") and printed[2].startswith("novelty [")
+    # One line per generation, then the best controller told.
+    assert [line.split()[0] for line in printed[:-1]] == [str(g) for g in range(8)]
+    best = re.fullmatch(r"best fitness (\S+) in generation (\d+)", printed[-1])
+    assert best, printed
+    assert 0.0 < float(best.group(1)) <= 1.0 and int(best.group(2)) < 8
 
 
 def test_a_missing_example_is_caught() -> None:
