@@ -62,6 +62,18 @@ def page_text(folder: Path) -> str:
     return "\n".join(parts)
 
 
+SPHINX_ROLE = re.compile(r":(?:mod|class|func|meth|attr|data|exc|obj):(<code>)")
+"""A Sphinx cross-reference role before a rendered code span: the docstrings use
+them (``:class:`SdbcExtractor```), and mkdocstrings renders them as literal text."""
+
+
+def on_page_content(html: str, **_: Any) -> str:
+    """Drop the Sphinx role names the docstrings use, keeping their code span, and
+    a docstring's literal-block ``::`` down to one colon."""
+    html = SPHINX_ROLE.sub(r"\1", html)
+    return re.sub(r"::(</p>)", r":\1", html)
+
+
 def on_config(config: MkDocsConfig, **_: Any) -> MkDocsConfig:
     """Fill the nav's (empty) tutorials section with one page per tutorial."""
     for entry in config.nav or []:

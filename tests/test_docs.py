@@ -164,7 +164,9 @@ def broken_links(site: Path) -> list[str]:
     """Relative links of the built pages that lead to no file, or to no id of the
     page they name, as ``page -> target``."""
     pages: dict[Path, _Links] = {}
-    for page in site.rglob("*.html"):
+    # 404.html is served at whatever address was not found, so its links are
+    # absolute from the site's root; every other page links relatively.
+    for page in (p for p in site.rglob("*.html") if p.name != "404.html"):
         parser = _Links()
         parser.feed(page.read_text())
         pages[page] = parser

@@ -44,8 +44,11 @@ def test_the_readme_example_runs_as_written(tmp_path: Path) -> None:
     )
     assert done.returncode == 0, done.stderr
     printed = done.stdout.splitlines()
-    assert re.fullmatch(r"\d+ dimensions, e\.g\. .+", printed[0]), printed
-    assert printed[1].startswith("fitness [") and printed[2].startswith("novelty [")
+    # One line per generation, then the best controller told.
+    assert [line.split()[0] for line in printed[:-1]] == [str(g) for g in range(8)]
+    best = re.fullmatch(r"best fitness (\S+) in generation (\d+)", printed[-1])
+    assert best, printed
+    assert 0.0 < float(best.group(1)) <= 1.0 and int(best.group(2)) < 8
 
 
 def test_a_missing_example_is_caught() -> None:
@@ -55,3 +58,22 @@ def test_a_missing_example_is_caught() -> None:
         assert "no ```python block" in str(error)
     else:
         raise AssertionError("a README without a python block passed")
+
+
+def test_conformance_of_a_task_file_runs_from_the_callers_folder(
+    tmp_path: Path,
+) -> None:
+    # The README's `scripts/sdbc conformance my_task.py:MyTask`, from the folder
+    # that holds the file (scripts/sdbc runs everything else from the root).
+    task = ROOT / "examples" / "01_custom_task" / "beacon_homing" / "task.py"
+    (tmp_path / "my_task.py").write_text(task.read_text())
+    command = [str(ROOT / "scripts" / "sdbc"), "conformance", "my_task.py:BeaconHoming"]
+    done = subprocess.run(
+        [*command, "--check", "declaration"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1/1 checks passed for my_task.py:BeaconHoming" in done.stdout

@@ -103,17 +103,20 @@ class Subject:
 
     @property
     def task(self) -> Task:
+        """The task, built once from the reference and its settings."""
         if self._task is None:
             self._task = make_task(self.reference, **dict(self.task_config))
         return self._task
 
     @property
     def genomes(self) -> np.ndarray:
+        """(G, W) random genomes in [-1, 1], a function of ``seed``."""
         rng = np.random.default_rng(self.seed)
         return rng.uniform(-1.0, 1.0, (self.n_genomes, self.task.genome_length))
 
     @property
     def seeds(self) -> np.ndarray:
+        """(G, T) trial seeds, a function of ``seed``."""
         rng = np.random.default_rng(self.seed + 1)
         return rng.integers(0, 2**40, (self.n_genomes, self.n_trials))
 
@@ -154,6 +157,7 @@ def _fail(message: str) -> None:
 
 
 def check_declaration(subject: Subject) -> str:
+    """The ``declaration`` check (module docstring); a summary of what passed."""
     task_class = resolve_task(subject.reference)  # checks name, settings class, ...
     docs = field_docs(task_class.config_class)
     undocumented = sorted(name for name, doc in docs.items() if not doc.strip())
@@ -272,6 +276,7 @@ class _StateChecker:
 
 
 def check_task_state(subject: Subject) -> str:
+    """The ``task_state`` check (module docstring); a summary of what passed."""
     checker = _StateChecker()
     run_batch(subject.task, subject.genomes, subject.seeds, [checker])
     return (
@@ -281,6 +286,7 @@ def check_task_state(subject: Subject) -> str:
 
 
 def check_ranges(subject: Subject) -> str:
+    """The ``ranges`` check (module docstring); a summary of what passed."""
     result = subject.plain()
     task = subject.task
     c = result.characterisation
@@ -334,6 +340,7 @@ def _trial(result: BatchResult, g: int, t: int) -> tuple[float, np.ndarray, int]
 
 
 def check_batch(subject: Subject) -> str:
+    """The ``batch`` check (module docstring); a summary of what passed."""
     batch, vectors = subject.observed()
     for g, t in _picks(subject):
         extractor = SdbcExtractor()
@@ -367,6 +374,7 @@ print(r.fitness[0, 0].hex(), r.length[0, 0], *[v.hex() for v in c])
 
 
 def check_process(subject: Subject) -> str:
+    """The ``process`` check (module docstring); a summary of what passed."""
     from sdbc_sim.tasks import format_task_config
 
     g, t = _picks(subject)[-1]
@@ -394,6 +402,7 @@ def check_process(subject: Subject) -> str:
 
 
 def check_live(subject: Subject) -> str:
+    """The ``live`` check (module docstring); a summary of what passed."""
     try:
         from rclpy.serialization import deserialize_message, serialize_message
         from sdbc_sim.task_state_msgs import task_state_to_msg
@@ -456,6 +465,7 @@ def _bad_values(default: Any) -> list[Any]:
 
 
 def check_settings(subject: Subject) -> str:
+    """The ``settings`` check (module docstring); a summary of what passed."""
     from sdbc_evolution.run.config import ConfigError, check_task_config
 
     task_class = resolve_task(subject.reference)
@@ -529,6 +539,8 @@ def run_checks(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``sdbc-conformance``: runs the checks on a task; the exit status of the module
+    docstring."""
     from sdbc_sim.tasks import parse_task_config
 
     parser = argparse.ArgumentParser(

@@ -101,6 +101,9 @@ class StateCount(Characteriser):
         outputs: np.ndarray,
         enabled: np.ndarray,
     ) -> None:
+        """Counts, per trial, the step's discretised sensor-effector state of every
+        enabled robot (see
+        :meth:`sdbc_sim.observer.NetworkObserver.observe_network`)."""
         levels = self.options.levels
         codes = np.concatenate(
             [
@@ -165,6 +168,8 @@ class SensorEffectorMean(Characteriser):
         outputs: np.ndarray,
         enabled: np.ndarray,
     ) -> None:
+        """Adds the step's sensor and effector values of every enabled robot to its
+        trial's sums (see :meth:`sdbc_sim.observer.NetworkObserver.observe_network`)."""
         values = np.concatenate([inputs, outputs], axis=2)  # (n, R, V)
         if self._sum is None:
             self._sum = np.zeros((self._n_trials, values.shape[2]))

@@ -61,6 +61,7 @@ from sdbc_evolution.run.stopping import stoppable
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``sdbc-graph``."""
     parser = argparse.ArgumentParser(
         prog="sdbc-graph",
         description=(
@@ -216,6 +217,7 @@ def run_trials(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``sdbc-graph``: brings the graph up, and down on Ctrl-C; the exit status."""
     args = build_parser().parse_args(argv)
     with stoppable():
         return _main(args)

@@ -264,6 +264,8 @@ def _excerpt(text: str, length: int = 60) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``characteriser_node`` program: spins the node until Ctrl-C; the exit
+    status."""
     # Ctrl-C stops the node but keeps the context up, so that the last
     # characterisations still reach their readers before it leaves.
     return run_node_program(

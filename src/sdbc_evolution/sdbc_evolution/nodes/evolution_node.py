@@ -526,6 +526,8 @@ def _run_experiment(startup: Startup, nodes: Sequence[EvolutionNode]) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``evolution_node`` program: runs the experiment its parameters name; the exit
+    status."""
     return run_node_program(
         NodeProgram(
             name="evolution_node",

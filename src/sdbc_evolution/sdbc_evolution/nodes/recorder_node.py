@@ -317,6 +317,7 @@ class RecorderNode(CheckedNode):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of the ``recorder`` program."""
     parser = argparse.ArgumentParser(
         prog="recorder",
         description=(
@@ -358,6 +359,8 @@ def _close(nodes: Sequence[RecorderNode]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``recorder`` program: records the topics until Ctrl-C, then closes the bag;
+    the exit status."""
     return run_node_program(
         NodeProgram(
             name="recorder",

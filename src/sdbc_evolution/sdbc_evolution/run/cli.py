@@ -61,6 +61,7 @@ GIF_NAME = "best.gif"
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``sdbc-evolve``."""
     parser = argparse.ArgumentParser(
         prog="sdbc-evolve",
         description=(
@@ -152,6 +153,8 @@ def list_tasks() -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``sdbc-evolve``: runs (or resumes) one experiment; the exit status (2 on bad
+    input, with a one-line error)."""
     args = build_parser().parse_args(argv)
     if args.list_tasks:
         try:

@@ -167,6 +167,7 @@ class Experiment:
 
     @property
     def finished(self) -> bool:
+        """Whether every generation of the run has been done."""
         return self.search.generation >= self.generations
 
     @classmethod

@@ -59,6 +59,7 @@ class Footprint:
 
     @property
     def total(self) -> int:
+        """Bytes in all: trials, arrays and worker processes."""
         return self.trials + self.arrays + self.workers
 
 

@@ -45,10 +45,12 @@ class RunLock:
 
     @property
     def path(self) -> Path:
+        """The lock file in the run directory."""
         return self.directory / LOCK_FILE
 
     @property
     def held(self) -> bool:
+        """Whether this process holds the lock."""
         return self._file is not None
 
     def acquire(self) -> RunLock:

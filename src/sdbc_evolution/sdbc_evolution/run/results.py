@@ -284,9 +284,11 @@ class ResultsDirectory:
 
     @property
     def checkpoint_path(self) -> Path:
+        """The run's checkpoint file."""
         return self.path / CHECKPOINT_FILE
 
     def individuals_path(self, generation: int) -> Path:
+        """The file of every individual of ``generation``."""
         return self.path / INDIVIDUALS_DIR / f"gen_{generation:05d}.npz"
 
     def holds_a_run(self) -> bool:
@@ -309,6 +311,7 @@ class ResultsDirectory:
         atomic_write_bytes(self.path / BEST_GENOMES_FILE, _npy_bytes(np.zeros((0, 0))))
 
     def write_config(self, config_yaml: str) -> None:
+        """Writes the run's resolved configuration (YAML), atomically."""
         atomic_write_bytes(self.path / CONFIG_FILE, config_yaml.encode())
 
     def append_generation(
@@ -448,6 +451,7 @@ class ResultsDirectory:
         return rows[1:]
 
     def best_genomes(self) -> np.ndarray:
+        """(generations, W) the best genome of every generation written so far."""
         return np.load(self.path / BEST_GENOMES_FILE)
 
     def _write_rows(self, rows: list[list[str]]) -> None:

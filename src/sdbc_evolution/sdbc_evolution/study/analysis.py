@@ -145,6 +145,8 @@ def _write_relevance(path: Path, table: RelevanceTable) -> Path:
 def analyse_task(
     digest: TaskDigest, settings: AnalysisSettings, out: Path
 ) -> TaskAnalysis:
+    """Writes one task's tables and figures under ``out`` from its digest, and returns
+    what the report says of it."""
     task = digest.task
     figures, tables = out / FIGURES_DIR, out / TABLES_DIR
     curves = best_curves(digest)

@@ -118,6 +118,8 @@ PAPER_RELEVANCE: dict[str, tuple[PaperFeature, ...]] = {
 
 
 class Verdict(str, Enum):
+    """How our numbers stand to a claim of the paper."""
+
     AGREE = "agree"
     DISAGREE = "disagree"
     INCONCLUSIVE = "inconclusive"
@@ -487,6 +489,7 @@ class PredictionResult:
 
     @property
     def outcome(self) -> str:
+        """The verdict in the words of a prediction (``OUTCOME``)."""
         return OUTCOME[self.verdict]
 
 

@@ -87,6 +87,7 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``sdbc-study``."""
     parser = argparse.ArgumentParser(
         prog="sdbc-study",
         description=(
@@ -331,6 +332,8 @@ def _measure(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``sdbc-study``: runs, analyses or compares a study (``all`` when no command is
+    given); the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] not in (*COMMANDS, "-h", "--help"):
         argv = ["all", *argv]

@@ -89,6 +89,7 @@ class TaskCost:
 
     @property
     def generations_per_second(self) -> float:
+        """Generations per second: the inverse of ``seconds_per_generation``."""
         return 1.0 / self.seconds_per_generation
 
 

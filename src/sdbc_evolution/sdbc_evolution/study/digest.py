@@ -106,6 +106,7 @@ class RunDigest:
 
     @property
     def task(self) -> str:
+        """The task of the run, as its configuration names it."""
         return self.config.task
 
     @property
@@ -115,6 +116,7 @@ class RunDigest:
 
     @property
     def generations(self) -> int:
+        """Generations the run's curve covers."""
         return int(self.curve.shape[0])
 
 
@@ -193,9 +195,15 @@ class StudyDigest:
     command: tuple[str, ...] = ()
 
     def tasks(self) -> list[str]:
+        """The study's tasks, in the digest's order."""
         return [t.task for t in self.task_digests]
 
     def task(self, name: str) -> TaskDigest:
+        """The digest of the task called ``name``.
+
+        Raises:
+            KeyError: The study has no such task.
+        """
         for digest in self.task_digests:
             if digest.task == name:
                 return digest
@@ -203,9 +211,11 @@ class StudyDigest:
 
     @property
     def runs(self) -> list[RunDigest]:
+        """Every run of every task."""
         return [r for t in self.task_digests for r in t.runs]
 
     def of(self, task: str, treatment: str | None = None) -> list[RunDigest]:
+        """The runs of ``task``, of one treatment or (None) of all."""
         return self.task(task).of(treatment)
 
 

@@ -88,6 +88,7 @@ class SomSettings:
 
     @property
     def units(self) -> int:
+        """Units of the map: rows x columns."""
         return self.rows * self.columns
 
 

@@ -62,6 +62,8 @@ def _pyplot() -> ModuleType:
 
 
 def plot_curves(curves: Curves, path: Path) -> Path:
+    """Plots the best fitness per generation of every treatment (mean, +-1 standard
+    error) to ``path``; returns ``path``."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     x = curves.generations
@@ -86,6 +88,8 @@ def plot_curves(curves: Curves, path: Path) -> Path:
 
 
 def plot_bests(task: str, bests: dict[str, np.ndarray], path: Path) -> Path:
+    """Plots each run's best fitness as one boxplot per treatment to ``path``; returns
+    ``path``."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(4.8, 4.0))
     treatments = list(bests)
@@ -114,6 +118,7 @@ def plot_bests(task: str, bests: dict[str, np.ndarray], path: Path) -> Path:
 
 
 def plot_exploration(maps: ExplorationMaps, path: Path) -> Path:
+    """Plots one SOM exploration map per treatment to ``path``; returns ``path``."""
     plt = _pyplot()
     rows, columns = maps.settings.rows, maps.settings.columns
     k = len(maps.treatments)

@@ -107,12 +107,15 @@ class RunSpec:
 
     @property
     def generations(self) -> int:
+        """Generations of the run, as its configuration resolves them."""
         return self.config.resolved_generations
 
 
 def run_directory(
     root: Path, task: str, treatment: str | TreatmentSpec, index: int
 ) -> Path:
+    """The directory of run ``index`` of a task and treatment under a study's
+    ``root``."""
     directory = treatment_directory(_name(treatment))
     return Path(root) / task / directory / f"run_{index:02d}"
 

@@ -59,7 +59,9 @@ class Prediction:
     """The tasks it concerns (empty: every task of the study)."""
 
     def concerns(self, task: str) -> bool:
+        """Whether the prediction applies to ``task``."""
         return not self.tasks or task in self.tasks
 
     def rule_text(self) -> str:
+        """The prediction in words, with the treatments' labels."""
         return RULE_TEXT[self.rule].format(a=label(self.a), b=label(self.b))

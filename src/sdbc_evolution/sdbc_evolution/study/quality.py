@@ -110,6 +110,7 @@ class Curves:
 
     @property
     def generations(self) -> np.ndarray:
+        """(G,) the generation indices of the curves."""
         return np.arange(self.mean.shape[1])
 
 

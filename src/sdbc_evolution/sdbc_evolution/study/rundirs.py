@@ -104,6 +104,7 @@ class RunData:
 
     @property
     def task(self) -> str:
+        """The task of the run, as its configuration names it."""
         return self.config.task
 
     @property
@@ -118,6 +119,7 @@ class RunData:
 
     @property
     def generations(self) -> int:
+        """Generations the run has written."""
         return len(self.fitness)
 
     def sdbc(self, generation: int) -> np.ndarray:

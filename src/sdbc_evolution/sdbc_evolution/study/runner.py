@@ -115,6 +115,8 @@ class Execution:
 
     @property
     def concurrent_runs(self) -> int:
+        """Runs at once: one on a Dask cluster (its workers share each run), else the
+        workers or the CPU count."""
         if self.scheduler is not None:
             return 1
         return self.workers if self.workers is not None else (os.cpu_count() or 1)

@@ -251,6 +251,7 @@ class ControllerNode(CheckedNode):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of the ``controller_node`` program."""
     parser = argparse.ArgumentParser(
         prog="controller_node",
         description=(
@@ -292,6 +293,8 @@ def _serve(startup: Startup, nodes: Sequence[ControllerNode]) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``controller_node`` program: serves one or more robots' controllers until
+    Ctrl-C; the exit status."""
     # Ctrl-C ends serve() but keeps the context up, so that the last commands
     # can still reach slower readers (a recorder) before the nodes go.
     return run_node_program(

@@ -427,6 +427,7 @@ class SimulatorNode(CheckedNode):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``simulator_node`` program: serves trials until Ctrl-C; the exit status."""
     # Ctrl-C aborts a running trial and leaves spin, but keeps the context up,
     # so that what was published can still reach slower readers (a recorder).
     # Two threads: parameter and graph services stay responsive while a trial runs.
