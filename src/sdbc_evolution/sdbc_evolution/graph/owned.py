@@ -57,6 +57,8 @@ def watch_launcher(owner: int, grace: float) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> None:
+    """Runs the module named in ``argv`` (``OWNER GRACE MODULE [ARGS...]``) as
+    ``__main__``, stopped when the process ``OWNER`` ends."""
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) < 3:
         sys.exit("usage: python -m sdbc_evolution.graph.owned OWNER GRACE MODULE ...")

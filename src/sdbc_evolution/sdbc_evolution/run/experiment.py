@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import json
 import time
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 
@@ -53,6 +54,7 @@ from sdbc_evolution.run.config import ExperimentConfig, dump_config
 from sdbc_evolution.run.evaluators import Evaluation, Evaluator, TaskInfo, TaskSpec
 from sdbc_evolution.run.lock import RunLock
 from sdbc_evolution.run.results import GenerationRecord, ResultsDirectory, RunDamaged
+from sdbc_evolution.run.system_errors import describe_system_error
 
 
 class _PhaseClock:
@@ -73,6 +75,18 @@ class _PhaseClock:
 
 class ExperimentError(RuntimeError):
     """A run that cannot start or go on; the message says why."""
+
+
+def describe_failure(error: BaseException, prog: str = "sdbc-evolve") -> str:
+    """What stopped a run, for a report of many runs: one line for a refusal of
+    the system (``describe_system_error``) or of a run's input (a ``ValueError``
+    or :class:`ExperimentError`: configuration, checkpoint, values out of range),
+    the traceback for anything else (a bug, whose traceback is what helps)."""
+    if isinstance(error, (OSError, MemoryError)):
+        return describe_system_error(error, prog)
+    if isinstance(error, (ValueError, ExperimentError)):
+        return f"{type(error).__name__}: {error}"
+    return "".join(traceback.format_exception(error)).rstrip()
 
 
 def _locked(out_dir: str | Path, lock: RunLock | None) -> RunLock:

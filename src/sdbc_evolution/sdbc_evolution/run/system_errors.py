@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import errno
 import sys
-import traceback
 from collections.abc import Callable
 
 SYSTEM_ERROR_EXIT = 2
@@ -53,20 +52,6 @@ def describe_system_error(
     if hint is not None:
         hint = hint.format(continues=CONTINUE_HINTS.get(prog, "run it again"))
     return f"{what}{where}" + (f" ({hint})" if hint else "")
-
-
-def describe_failure(error: BaseException, prog: str = "sdbc-evolve") -> str:
-    """What stopped a run, for a report of many runs: one line for a refusal of
-    the system (:func:`describe_system_error`) or of a run's input (a
-    ``ValueError``: configuration, checkpoint, values out of range), the
-    traceback for anything else (a bug, whose traceback is what helps)."""
-    from sdbc_evolution.run.experiment import ExperimentError
-
-    if isinstance(error, (OSError, MemoryError)):
-        return describe_system_error(error, prog)
-    if isinstance(error, (ValueError, ExperimentError)):
-        return f"{type(error).__name__}: {error}"
-    return "".join(traceback.format_exception(error)).rstrip()
 
 
 def named(error: OSError, path: object) -> OSError:

@@ -110,6 +110,7 @@ class Reevaluated:
     trial_fitness: tuple[float, ...]
 
     def to_plain(self) -> dict[str, Any]:
+        """As plain data (JSON)."""
         return {
             "generation": self.generation,
             "fitness": self.fitness,
@@ -139,6 +140,7 @@ class Champions:
     last: Reevaluated
 
     def to_json(self) -> bytes:
+        """The file a run's champions are kept in, as bytes."""
         data = {
             "trials": self.trials,
             "seeds": list(self.seeds),
@@ -283,6 +285,7 @@ class ChampionSummary:
 
     @classmethod
     def of(cls, champions: Champions) -> ChampionSummary:
+        """The summary of a run's :class:`Champions`."""
         return cls(
             trials=champions.trials,
             generation=champions.champion.generation,

@@ -58,13 +58,17 @@ from sdbc_evolution.run.evaluators import (
     TaskInfo,
     make_evaluator,
 )
-from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
+from sdbc_evolution.run.experiment import (
+    Experiment,
+    ExperimentError,
+    describe_failure,
+    task_spec,
+)
 from sdbc_evolution.run.footprint import check_footprint
 from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
 from sdbc_evolution.run.stopping import STOP_SIGNALS
-from sdbc_evolution.run.system_errors import describe_failure
 from sdbc_evolution.study.champions import reevaluate_champions
 from sdbc_evolution.study.plan import (
     LOG_FILE,
