@@ -18,18 +18,19 @@ setup(
     python_requires=">=3.10",
     # The method, the GA, sdbc-evolve, sdbc-study and sdbc-conformance. The ROS
     # nodes and the live graph need rclpy and sdbc_msgs from ROS 2 (scripts/sdbc
-    # setup); their console scripts say so when they are missing.
+    # setup); their console scripts say so when they are missing. Floors: as
+    # sdbc_sim's, the oldest releases the tests passed with.
     install_requires=[
         "sdbc_sim",
         "numpy>=2.0",
-        "scipy>=1.11",
-        "scikit-learn>=1.4",
+        "scipy>=1.13",
+        "scikit-learn>=1.4.2",
         "threadpoolctl>=3.1",
-        "pydantic>=2.0",
-        "pyyaml>=6.0",
+        "pydantic>=2.8",
+        "pyyaml>=6.0.1",
         "tqdm>=4.60",
         "minisom>=2.3",
-        "matplotlib>=3.7",
+        "matplotlib>=3.9",
     ],
     # Imported only by the part that needs them.
     extras_require={

@@ -14,15 +14,16 @@ setup(
     # What the engine, the tasks and the task-state formalism import. The ROS
     # nodes' rclpy and sdbc_msgs come from ROS 2 (scripts/sdbc setup), not from
     # pip: their console scripts say so when they are missing. Floors: the
-    # oldest release line whose API the code uses (pymunk.batch's fields of 7,
-    # numpy 2's scalar and copy rules, pydantic 2's dataclasses and strict mode).
+    # oldest releases the library's tests were run with and passed, all at once
+    # (pydantic 2.7 fails them: it does not resolve the settings' forward
+    # references).
     install_requires=[
         "numpy>=2.0",
         "pymunk>=7.0",
         "numba>=0.60",
-        "pydantic>=2.0",
-        "pyyaml>=6.0",
-        "matplotlib>=3.7",
+        "pydantic>=2.8",
+        "pyyaml>=6.0.1",
+        "matplotlib>=3.9",
     ],
     zip_safe=True,
     maintainer="sdbc team",
