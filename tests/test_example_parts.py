@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from test_examples import fingerprint, install_copy
+from test_examples import fingerprint, install_copy, run
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "07_own_parts"
@@ -26,19 +26,6 @@ def installed(tmp_path_factory: pytest.TempPathFactory):
     before = fingerprint(EXAMPLE, ROOT / "src")
     yield install_copy(EXAMPLE, tmp_path_factory.mktemp("parts"))
     assert fingerprint(EXAMPLE, ROOT / "src") == before
-
-
-def run(env: dict[str, str], *args: str, cwd: Path) -> str:
-    done = subprocess.run(
-        [sys.executable, *args],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=cwd,
-        timeout=1800,
-    )
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    return done.stdout
 
 
 @pytest.mark.slow
@@ -62,7 +49,7 @@ def test_sdbc_evolve_runs_the_treatment_of_own_parts(installed, tmp_path) -> Non
 
     def evolve(out: Path, *more: str) -> None:
         args = ["--out", str(out), "--workers", "1", "--quiet", "--no-gif", *more]
-        run(env, "-m", "sdbc_evolution.run.cli", *args, cwd=tmp_path)
+        run(env, "sdbc_evolution.run.cli", *args, cwd=tmp_path)
 
     whole, resumed = tmp_path / "whole", tmp_path / "resumed"
     evolve(whole, "--config", str(config), *treatment)
@@ -87,8 +74,8 @@ def test_the_parts_contract_checks_the_installed_parts(installed) -> None:
     env, _ = installed
     contract = str(ROOT / "tests" / "test_parts_contract.py")
     pick = " or ".join(part.split(":")[1] for part in PARTS)
-    args = ["-m", "pytest", "-v", "-p", "no:cacheprovider", contract, "-k", pick]
-    printed = run(env, *args, cwd=ROOT)
+    args = ["-v", "-p", "no:cacheprovider", contract, "-k", pick]
+    printed = run(env, "pytest", *args, cwd=ROOT)
     for part in PARTS:
         results = [line for line in printed.splitlines() if f"[{part}]" in line]
         # Three checks of every part, and its kind's own.

@@ -33,7 +33,7 @@ generator's stream does not depend on the measure's internals.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from abc import abstractmethod
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -124,61 +124,59 @@ class MiChance(RelevanceMeasure):
         return np.maximum(information - chance, 0.0)
 
 
-def _columns(
-    raw: np.ndarray, fitness: np.ndarray, statistic: Callable[..., Any]
-) -> np.ndarray:
-    out = np.zeros(raw.shape[1])
-    if np.ptp(fitness) == 0:
+class Correlation(RelevanceMeasure):
+    """|statistic(dimension, fitness)| of every dimension; 0 for a constant
+    dimension or fitness."""
+
+    @staticmethod
+    @abstractmethod
+    def statistic(x: np.ndarray, y: np.ndarray) -> float:
+        """The dependence of ``y`` on ``x`` (both (n,), neither constant)."""
+
+    def relevance(
+        self,
+        raw: np.ndarray,
+        fitness: np.ndarray,
+        weighting: WeightingSettings,
+        seed: int,
+    ) -> np.ndarray:
+        out = np.zeros(raw.shape[1])
+        if np.ptp(fitness) == 0:
+            return out
+        for k in range(raw.shape[1]):
+            if np.ptp(raw[:, k]) > 0:
+                out[k] = abs(float(self.statistic(raw[:, k], fitness)))
         return out
-    for k in range(raw.shape[1]):
-        if np.ptp(raw[:, k]) > 0:
-            out[k] = abs(float(statistic(raw[:, k], fitness)))
-    return out
 
 
-class Pearson(RelevanceMeasure):
+class Pearson(Correlation):
     """|Pearson r| with fitness."""
 
-    def relevance(
-        self,
-        raw: np.ndarray,
-        fitness: np.ndarray,
-        weighting: WeightingSettings,
-        seed: int,
-    ) -> np.ndarray:
+    @staticmethod
+    def statistic(x: np.ndarray, y: np.ndarray) -> float:
         from scipy.stats import pearsonr
 
-        return _columns(raw, fitness, lambda x, y: pearsonr(x, y).statistic)
+        return float(pearsonr(x, y).statistic)
 
 
-class Spearman(RelevanceMeasure):
+class Spearman(Correlation):
     """|Spearman rho| with fitness."""
 
-    def relevance(
-        self,
-        raw: np.ndarray,
-        fitness: np.ndarray,
-        weighting: WeightingSettings,
-        seed: int,
-    ) -> np.ndarray:
+    @staticmethod
+    def statistic(x: np.ndarray, y: np.ndarray) -> float:
         from scipy.stats import spearmanr
 
-        return _columns(raw, fitness, lambda x, y: spearmanr(x, y).statistic)
+        return float(spearmanr(x, y).statistic)
 
 
-class DistanceCorrelation(RelevanceMeasure):
+class DistanceCorrelation(Correlation):
     """Distance correlation with fitness."""
 
-    def relevance(
-        self,
-        raw: np.ndarray,
-        fitness: np.ndarray,
-        weighting: WeightingSettings,
-        seed: int,
-    ) -> np.ndarray:
+    @staticmethod
+    def statistic(x: np.ndarray, y: np.ndarray) -> float:
         import dcor
 
-        return _columns(raw, fitness, dcor.distance_correlation)
+        return float(dcor.distance_correlation(x, y))
 
 
 def feature_classes(
