@@ -130,6 +130,7 @@ def _graph(context: LaunchContext) -> list[Any]:
                 namespace="/" + process.namespace if process.namespace else None,
                 arguments=list(process.args),
                 parameters=parameters,
+                remappings=list(process.remaps),
                 output="screen",
                 # A node that ends (the evolution node at the end of its run, or
                 # one that fails) ends the graph, as under sdbc-graph.
