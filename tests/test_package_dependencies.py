@@ -29,9 +29,11 @@ WORKSPACE = {"sdbc_msgs", "sdbc_sim", "sdbc_evolution"}
 
 ROS_PACKAGES = {
     "ament_index_python",
+    "builtin_interfaces",
     "geometry_msgs",
     "rcl_interfaces",
     "rclpy",
+    "rosgraph_msgs",
     "std_msgs",
     "std_srvs",
     "visualization_msgs",

@@ -19,6 +19,7 @@ Arguments left empty keep what the graph file says.
 
 from __future__ import annotations
 
+import atexit
 import shutil
 import tempfile
 from pathlib import Path
@@ -27,13 +28,7 @@ from typing import Any
 import yaml
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchContext, LaunchDescription
-from launch.actions import (
-    DeclareLaunchArgument,
-    EmitEvent,
-    OpaqueFunction,
-    RegisterEventHandler,
-)
-from launch.event_handlers import OnShutdown
+from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
@@ -74,14 +69,18 @@ def _boolean(name: str, text: str) -> bool:
 
 
 def _graph(context: LaunchContext) -> list[Any]:
-    from sdbc_evolution.graph.graph_file import load_graph_file
+    from sdbc_evolution.graph.graph_file import (
+        SHARED_KEY,
+        load_graph_file,
+        with_parameters,
+    )
     from sdbc_evolution.graph.processes import (
-        EVOLUTION_MODULE,
         PARAMETERS_FILE,
         graph_processes,
         write_parameters,
     )
     from sdbc_evolution.graph.shm import remove_stale_dds_files
+    from sdbc_sim.nodes.interface import EVOLUTION_NODE
 
     given = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
     launch = {}
@@ -98,31 +97,32 @@ def _graph(context: LaunchContext) -> list[Any]:
         raise ValueError(
             f"launch argument record: {record} exists already; not overwriting"
         )
+    # In the parameters file itself: launch_ros gives a dict of parameters under
+    # "/**", which loses to the file's sections that name a node.
+    if given["use_sim_time"]:
+        graph_file = with_parameters(
+            graph_file,
+            SHARED_KEY,
+            {"use_sim_time": _boolean("use_sim_time", given["use_sim_time"])},
+        )
+    evolution = {k: given[k] for k in ("experiment_config", "output") if given[k]}
+    if evolution:
+        graph_file = with_parameters(graph_file, EVOLUTION_NODE, evolution)
     work_dir = Path(tempfile.mkdtemp(prefix="sdbc-launch-"))
+    # Removed when ros2 launch exits (its nodes read the file at their start).
+    atexit.register(shutil.rmtree, work_dir, ignore_errors=True)
     params_file = work_dir / PARAMETERS_FILE
     write_parameters(graph_file, params_file, given["namespace"])
-    overrides: dict[str, Any] = {}
-    if given["use_sim_time"]:
-        overrides["use_sim_time"] = _boolean("use_sim_time", given["use_sim_time"])
-    evolution = {k: given[k] for k in ("experiment_config", "output") if given[k]}
     remove_stale_dds_files()
-    actions: list[Any] = [
-        RegisterEventHandler(
-            OnShutdown(
-                on_shutdown=[OpaqueFunction(function=lambda _: shutil.rmtree(work_dir))]
-            )
-        )
-    ]
+    actions: list[Any] = []
     for process in graph_processes(graph_file, params_file, record, given["namespace"]):
         package, executable = process.program
         parameters: list[Any] = [str(params_file)]
-        # After the file, so that they win, as -p after --params-file does.
-        more = {name: yaml.safe_load(value) for name, value in process.parameters}
-        more.update(overrides)
-        if process.module == EVOLUTION_MODULE:
-            more.update(evolution)
-        if more:
-            parameters.append(more)
+        if process.parameters:
+            # Only the evolution node's graph_namespaces, which no section sets.
+            parameters.append(
+                {name: yaml.safe_load(value) for name, value in process.parameters}
+            )
         actions.append(
             Node(
                 package=package,
@@ -130,7 +130,11 @@ def _graph(context: LaunchContext) -> list[Any]:
                 namespace="/" + process.namespace if process.namespace else None,
                 arguments=list(process.args),
                 parameters=parameters,
+                remappings=list(process.remaps),
                 output="screen",
+                # As long as sdbc-graph gives a node to stop after SIGINT (a
+                # node waits for its readers' acknowledgements first).
+                sigterm_timeout=str(graph_file.settings.shutdown_timeout),
                 # A node that ends (the evolution node at the end of its run, or
                 # one that fails) ends the graph, as under sdbc-graph.
                 on_exit=[EmitEvent(event=Shutdown(reason=f"{process.name} ended"))],

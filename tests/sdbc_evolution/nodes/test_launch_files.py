@@ -156,3 +156,46 @@ def test_ros2_launch_gate_escape_answers_run_trial_like_sdbc_graph(
     assert len(started) == 5, output[-3000:]
     time.sleep(1.0)
     assert not [pid for pid in started if Path(f"/proc/{pid}").exists()], output
+
+
+def test_ros2_launch_evolution_runs_an_experiment_to_its_end(tmp_path):
+    import yaml
+    from sdbc_evolution.run.results import read_generations
+
+    experiment = tmp_path / "tiny.yaml"
+    experiment.write_text(
+        yaml.safe_dump(
+            {
+                "treatment": "ns-sd+",
+                "generations": 2,
+                "seed": 1,
+                "ga": {"population_size": 4, "elites": 1, "tournament_size": 2},
+                "novelty": {"k": 2},
+                "evaluation": {"trials": 1, "reevaluation_trials": 0},
+            }
+        )
+    )
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            ROS2,
+            "launch",
+            "sdbc_evolution",
+            "evolution.launch.py",
+            f"experiment_config:={experiment}",
+            f"output:={tmp_path / 'run'}",
+            "namespace:=evolved",
+            "task_config:={max_steps: 40}",
+            "use_sim_time:=true",
+        ],
+        capture_output=True,
+        text=True,
+        env=_env(tmp_path),
+        cwd=tmp_path,
+        timeout=600,
+    )
+    # The evolution node ends the launch when its run is complete.
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+    assert "run complete" in done.stdout + done.stderr
+    assert read_generations(tmp_path / "run")["generation"].tolist() == [0.0, 1.0]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -199,6 +199,26 @@ def trial_graph(
         **{name: {"ros__parameters": dict(p)} for name, p in (nodes or {}).items()},
         CONTROLLERS_KEY: {"ros__parameters": {"genome": [float(w) for w in genome]}},
     }
+
+
+def with_parameters(
+    graph: GraphFile, section: str, values: Mapping[str, Any]
+) -> GraphFile:
+    """``graph`` with ``values`` set in the ``ros__parameters`` of ``section``
+    (made if absent); ``section`` :data:`SHARED_KEY` sets them in every section,
+    so that they win over a node's own value as they would with ``-p``."""
+    parameters = {key: dict(value) for key, value in graph.parameters.items()}
+    keys = {section, *parameters} if section == SHARED_KEY else {section}
+    for key in keys:
+        parameters.setdefault(key, {})
+        parameters[key] = {
+            **parameters[key],
+            "ros__parameters": {
+                **parameters[key].get("ros__parameters", {}),
+                **values,
+            },
+        }
+    return replace(graph, parameters=parameters)
 
 
 def has_genome(graph: GraphFile) -> bool:

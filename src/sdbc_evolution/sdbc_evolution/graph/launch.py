@@ -5,6 +5,10 @@ node's parameters; the launcher starts the simulator, the controllers, and
 optionally the evolution node and a bag recorder, each as its own process
 (:mod:`sdbc_evolution.graph.processes`).
 
+Before it starts anything it looks, for a moment, whether a node of the DDS domain
+already offers its simulator's service (another graph in the same namespace, whose
+answers would be taken for this one's), and refuses if so (exit 2).
+
 It then waits: for Ctrl-C, for a node process to exit (which stops the graph), or,
 with ``--trial SEED`` (repeatable), for those trials, which it asks the simulator
 for and reports, and stops. Before the first trial it checks, as the evolution

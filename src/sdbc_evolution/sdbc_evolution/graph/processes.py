@@ -15,6 +15,10 @@ parameter section as ``--params-file``:
 With a namespace (``sdbc-graph --namespace NS``) every process is pushed into it
 (``-r __ns:=/NS``), and the parameters file's relative section keys are made to
 match there (:func:`~sdbc_evolution.graph.graph_file.namespaced_parameters`).
+``/clock`` is absolute by ROS convention, so a namespaced graph's nodes have it
+remapped to their graph's own (``/NS/clock``, ``/NS/graph_<k>/clock``; the
+evolution node and the recorder follow the first graph's): two graphs with
+``use_sim_time`` in one domain keep their times apart.
 
 :class:`ProcessGraph` starts them, each under :mod:`sdbc_evolution.graph.owned`
 (the node stops when the launcher dies, SIGKILL included), first removing the Fast
@@ -58,9 +62,11 @@ EVOLUTION_MODULE = "sdbc_evolution.nodes.evolution_node"
 RECORDER_MODULE = "sdbc_evolution.nodes.recorder_node"
 OWNED_MODULE = "sdbc_evolution.graph.owned"
 """What every node process runs under: it stops the node when the launcher ends."""
-DEFAULT_RECORD_TOPICS = ("task_state", "markers")
+DEFAULT_RECORD_TOPICS = ("clock", "task_state", "poses", "markers")
 """Topics of each simulator graph recorded when the graph file lists none, besides
-every robot's sensors and command, and the evolution node's topics when it runs."""
+every robot's sensors and command, and the evolution node's topics when it runs
+(``clock``: the graph's ``/clock``, remapped under its namespace if it has one,
+so that a player of the bag follows the trial's time)."""
 EVOLUTION_TOPICS = ("generation_stats", "best_genome")
 """The evolution node's topics."""
 GRAPH_NAMESPACES_PARAMETER = "graph_namespaces"
@@ -89,6 +95,7 @@ class NodeProcess:
         params_file: Its ``--params-file``.
         parameters: Parameter overrides after the file (``-p name:=value``,
             values as YAML).
+        remaps: Name remappings (``-r from:=to``).
         stops_last: Stopped only once every other process has ended (the
             recorder: it must take what the others sent as they stopped).
     """
@@ -99,6 +106,7 @@ class NodeProcess:
     namespace: str = ""
     params_file: Path | None = None
     parameters: tuple[tuple[str, str], ...] = ()
+    remaps: tuple[tuple[str, str], ...] = ()
     stops_last: bool = False
 
     @property
@@ -109,7 +117,10 @@ class NodeProcess:
     @property
     def ros_arguments(self) -> tuple[str, ...]:
         """What follows ``--ros-args``."""
-        remap = ("-r", f"__ns:=/{self.namespace}") if self.namespace else ()
+        remap: tuple[str, ...] = (
+            ("-r", f"__ns:=/{self.namespace}") if self.namespace else ()
+        )
+        remap += tuple(a for old, new in self.remaps for a in ("-r", f"{old}:={new}"))
         params = ("--params-file", str(self.params_file)) if self.params_file else ()
         overrides = tuple(a for n, v in self.parameters for a in ("-p", f"{n}:={v}"))
         return (*remap, *overrides, *params)
@@ -161,7 +172,12 @@ def graph_processes(
 ) -> list[NodeProcess]:
     """The processes that make up ``graph``, each given ``params_file``, all in
     ``namespace`` ("" for none)."""
-    from sdbc_sim.nodes.interface import COMMAND_TOPIC, SENSORS_TOPIC, robot_topic
+    from sdbc_sim.nodes.interface import (
+        CLOCK_TOPIC,
+        COMMAND_TOPIC,
+        SENSORS_TOPIC,
+        robot_topic,
+    )
     from sdbc_sim.tasks import make_task
 
     namespace = check_namespace(namespace)
@@ -170,12 +186,23 @@ def graph_processes(
     except (TypeError, ValueError) as error:
         raise GraphError(f"graph file: {error}") from None
 
-    def node(name: str, module: str, ns: str, *args: str, **more: Any) -> NodeProcess:
+    subgraphs = graph_namespaces(graph.settings)
+
+    def node(
+        name: str, module: str, ns: str, *args: str, clock: str = "", **more: Any
+    ) -> NodeProcess:
+        clock = clock or ns
         return NodeProcess(
-            name, module, args, namespace=ns, params_file=params_file, **more
+            name,
+            module,
+            args,
+            namespace=ns,
+            params_file=params_file,
+            remaps=((CLOCK_TOPIC, f"/{clock}{CLOCK_TOPIC}"),) if clock else (),
+            **more,
         )
 
-    subgraphs = graph_namespaces(graph.settings)
+    first_clock = join_namespace(namespace, subgraphs[0])
     processes = []
     for sub in subgraphs:
         ns = join_namespace(namespace, sub)
@@ -201,7 +228,13 @@ def graph_processes(
             else ()
         )
         processes.append(
-            node("evolution", EVOLUTION_MODULE, namespace, parameters=several)
+            node(
+                "evolution",
+                EVOLUTION_MODULE,
+                namespace,
+                clock=first_clock,
+                parameters=several,
+            )
         )
     if record is not None:
         # Resolved here, so that the bag names the topics as `ros2 topic list` does.
@@ -232,6 +265,7 @@ def graph_processes(
                 str(record),
                 "--topics",
                 *topics,
+                clock=first_clock,
                 stops_last=True,
             )
         )
