@@ -33,20 +33,28 @@ export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
 # profile from FASTRTPS_DEFAULT_PROFILES_FILE (2.14, Jazzy's) or, in newer versions,
 # FASTDDS_DEFAULT_PROFILES_FILE: unless either is set (an empty value included),
 # both point at scripts/fastdds_localhost.xml, which puts every socket on loopback.
-# ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST alone does not: rmw_fastrtps then adds a
-# UDP transport of its own, bound to 0.0.0.0 and the external interface (measured
-# with /proc/net; tests/test_sockets.py). So with the profile the range defaults to
-# SYSTEM_DEFAULT (the profile decides); without it, to LOCALHOST.
+# ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST does not: rmw_fastrtps then adds a UDP
+# transport of its own, on every interface, beside the profile's (measured with
+# /proc/net; tests/test_sockets.py). So while the profile is in force the range is
+# SYSTEM_DEFAULT (the profile decides), LOCALHOST exported before this script
+# included; the project's nodes do the same at start-up for a LOCALHOST exported
+# after it (sdbc_sim.nodes.startup.keep_dds_on_loopback). Without the profile the
+# range defaults to LOCALHOST.
 # Multi-machine graphs: export FASTRTPS_DEFAULT_PROFILES_FILE= (empty) before
 # sourcing this, and ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (README, "Reliability").
+_sdbc_profile="$_sdbc_root/scripts/fastdds_localhost.xml"
 if [ -z "${FASTRTPS_DEFAULT_PROFILES_FILE+set}" ] && [ -z "${FASTDDS_DEFAULT_PROFILES_FILE+set}" ]; then
-  export FASTRTPS_DEFAULT_PROFILES_FILE="$_sdbc_root/scripts/fastdds_localhost.xml"
-  export FASTDDS_DEFAULT_PROFILES_FILE="$FASTRTPS_DEFAULT_PROFILES_FILE"
-  export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-SYSTEM_DEFAULT}"
+  export FASTRTPS_DEFAULT_PROFILES_FILE="$_sdbc_profile"
+  export FASTDDS_DEFAULT_PROFILES_FILE="$_sdbc_profile"
+fi
+if [ "${FASTRTPS_DEFAULT_PROFILES_FILE:-$FASTDDS_DEFAULT_PROFILES_FILE}" = "$_sdbc_profile" ]; then
+  case "${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}" in
+    LOCALHOST) export ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT ;;
+  esac
 else
   export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 fi
 export ROS_HOME="${ROS_HOME:-$_sdbc_root/.ros}"
 export MPLBACKEND="${MPLBACKEND:-Agg}"
 
-unset _sdbc_root _sdbc_venv _sdbc_pyver _sdbc_site _sdbc_ld _sdbc_py _d
+unset _sdbc_profile _sdbc_root _sdbc_venv _sdbc_pyver _sdbc_site _sdbc_ld _sdbc_py _d

@@ -47,10 +47,11 @@ sys.stdin.read()  # stay up while the test reads the sockets
 """
 
 
-def env_sh_defaults() -> dict[str, str]:
+def env_sh_defaults(**before: str) -> dict[str, str]:
     """The environment after ``source scripts/env.sh`` in a shell that set none
-    of the DDS variables."""
+    of the DDS variables but ``before``."""
     env = {k: v for k, v in os.environ.items() if k not in DDS_VARIABLES}
+    env.update(before)
     dumped = subprocess.run(
         ["bash", "-c", f"source {ENV_SH} && env -0"],
         env=env,
@@ -122,13 +123,12 @@ def beyond_loopback(sockets: list[tuple[str, str, bool]]) -> list[tuple[str, str
     ]
 
 
-@pytest.mark.ros
-def test_graph_nodes_bind_only_loopback_and_still_find_each_other(
-    tmp_path: Path,
-) -> None:
-    env = env_sh_defaults()
-    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"].endswith("fastdds_localhost.xml")
-    env["ROS_HOME"] = str(tmp_path)
+def graph_node_sockets(
+    tmp_path: Path, env: dict[str, str], probe_env: dict[str, str]
+) -> list[tuple[str, str, bool]]:
+    """The sockets of a simulator and a controller started with ``env``, once a
+    probe started with ``probe_env`` has found both."""
+    env = {**env, "ROS_HOME": str(tmp_path)}
     nodes = [
         subprocess.Popen(
             [name], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
@@ -137,7 +137,7 @@ def test_graph_nodes_bind_only_loopback_and_still_find_each_other(
     ]
     probe = subprocess.Popen(
         [sys.executable, "-c", NODE_NAMES, "60", "simulator", "controller"],
-        env=env,
+        env={**probe_env, "ROS_HOME": str(tmp_path)},
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
@@ -145,14 +145,64 @@ def test_graph_nodes_bind_only_loopback_and_still_find_each_other(
     try:
         assert probe.stdout is not None
         assert probe.stdout.readline().strip() == "found"
-        pids = [p.pid for p in (*nodes, probe)]
-        sockets = ip_sockets(pids)
+        sockets = ip_sockets([p.pid for p in nodes])
         assert sockets, "no sockets found: the processes did not start DDS"
-        assert beyond_loopback(sockets) == []
+        return sockets
     finally:
         for process in (*nodes, probe):
             process.kill()
             process.communicate()
+
+
+@pytest.mark.ros
+def test_graph_nodes_bind_only_loopback_and_still_find_each_other(
+    tmp_path: Path,
+) -> None:
+    env = env_sh_defaults()
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"].endswith("fastdds_localhost.xml")
+    assert beyond_loopback(graph_node_sockets(tmp_path, env, env)) == []
+
+
+@pytest.mark.ros
+def test_graph_nodes_stay_on_loopback_with_localhost_exported_after_env_sh(
+    tmp_path: Path,
+) -> None:
+    # What a user who follows the usual ROS advice types after sourcing env.sh:
+    # rmw_fastrtps would add a UDP transport on every interface beside the
+    # profile's; the nodes leave discovery to the profile instead.
+    env = {**env_sh_defaults(), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    sockets = graph_node_sockets(tmp_path, env, env_sh_defaults())
+    assert beyond_loopback(sockets) == []
+
+
+def test_localhost_exported_before_env_sh_is_left_to_the_profile() -> None:
+    env = env_sh_defaults(ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"].endswith("fastdds_localhost.xml")
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
+    # A choice other than LOCALHOST, or LOCALHOST without the profile, is kept.
+    env = env_sh_defaults(ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET")
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
+    env = env_sh_defaults(
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", FASTRTPS_DEFAULT_PROFILES_FILE=""
+    )
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+
+def test_the_nodes_leave_an_exported_localhost_to_the_loopback_profile() -> None:
+    pytest.importorskip("rclpy")
+    from sdbc_sim.nodes.startup import keep_dds_on_loopback
+
+    profile = str(ROOT / "scripts" / "fastdds_localhost.xml")
+    env = {"FASTRTPS_DEFAULT_PROFILES_FILE": profile}
+    for given, kept in (("LOCALHOST", "SYSTEM_DEFAULT"), ("SUBNET", "SUBNET")):
+        adjusted = {**env, "ROS_AUTOMATIC_DISCOVERY_RANGE": given}
+        keep_dds_on_loopback(adjusted)
+        assert adjusted["ROS_AUTOMATIC_DISCOVERY_RANGE"] == kept
+    # Another profile of the user's: LOCALHOST is theirs to keep.
+    other = {"FASTRTPS_DEFAULT_PROFILES_FILE": "/etc/mine.xml"}
+    other["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    keep_dds_on_loopback(other)
+    assert other["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
 
 def test_a_dask_run_binds_only_loopback(tmp_path: Path) -> None:

@@ -13,9 +13,11 @@ what the program's ``serve`` returns.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Generic, Literal, TypeVar
 
 import rclpy
@@ -32,6 +34,10 @@ from sdbc_sim.nodes.interface import UsageError, split_ros_arguments
 from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
 
 NodeT = TypeVar("NodeT", bound=Node)
+
+LOOPBACK_PROFILE = "fastdds_localhost.xml"
+"""The name of the project's Fast DDS profile (``scripts/fastdds_localhost.xml``),
+which puts every socket on loopback."""
 
 SIGNAL_POLL = 0.2
 """Seconds :func:`spin_until_stopped` lets the executor wait at most, so that
@@ -102,8 +108,35 @@ class NodeProgram(Generic[NodeT]):
     close: Callable[[Sequence[NodeT]], None] | None = None
 
 
+def keep_dds_on_loopback(environ: dict[str, str] | None = None) -> None:
+    """Leaves discovery to the project's loopback profile when it is in force.
+
+    With ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, rmw_fastrtps adds a UDP
+    transport of its own, on every interface, beside the profile's loopback-only
+    ones; ``SYSTEM_DEFAULT`` keeps the profile's alone (tests/test_sockets.py).
+    ``scripts/env.sh`` does this when it is sourced; this covers a ``LOCALHOST``
+    exported after it. Must run before rclpy is initialised (rcl reads the
+    variable then).
+
+    Args:
+        environ: The environment to adjust; default: this process's.
+    """
+    env: Any = os.environ if environ is None else environ
+    profiles = [
+        env[name]
+        for name in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+        if env.get(name)
+    ]
+    on_profile = bool(profiles) and all(
+        Path(p).name == LOOPBACK_PROFILE for p in profiles
+    )
+    if on_profile and env.get("ROS_AUTOMATIC_DISCOVERY_RANGE") == "LOCALHOST":
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
+
+
 def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) -> int:
     """Runs ``program`` with the command line ``argv`` (``sys.argv`` if None)."""
+    keep_dds_on_loopback()
     try:
         ros_argv, plain = split_ros_arguments(
             program.name, argv, allow_plain=program.parser is not None
