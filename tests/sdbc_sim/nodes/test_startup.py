@@ -82,6 +82,6 @@ def test_own_arguments_are_parsed_and_nodes_made_before_a_failure_are_destroyed(
             yield made[-1]
 
     spec, _ = program(make_nodes=make_nodes, parser=parser)
-    argv = ["test_node", "--count", "3", "--ros-args", "-p", "x:=1"]
+    argv = ["test_node", "--count", "3", "--ros-args", "-p", "use_sim_time:=false"]
     assert run_node_program(spec, argv) == 2
     assert len(made) == 2 and all(destroyed(node) for node in made)

@@ -40,7 +40,6 @@ from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.node import Node
 from sdbc_sim.nodes.interface import (
     CHARACTERISATION_QOS,
     CHARACTERISATION_TOPIC,
@@ -48,6 +47,7 @@ from sdbc_sim.nodes.interface import (
     TASK_STATE_QOS,
     TASK_STATE_TOPIC,
 )
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.startup import NodeProgram, run_node_program, spin_until_stopped
 
 from sdbc_evolution.sdbc.messages import MessageSdbcExtractor
@@ -62,7 +62,7 @@ MAX_TIMEOUT = 3600.0
 """Largest ``trial_timeout`` accepted, seconds."""
 
 
-class CharacteriserNode(Node):
+class CharacteriserNode(CheckedNode):
     """Characterises every trial seen on the task state topic.
 
     Parameters (ROS), read-only:

@@ -53,7 +53,6 @@ import numpy as np
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import ExternalShutdownException
-from rclpy.node import Node
 from sdbc_sim.nodes.interface import (
     BEST_GENOME_TOPIC,
     DISPLAY_QOS,
@@ -63,6 +62,7 @@ from sdbc_sim.nodes.interface import (
     REPLAY_BEST_SERVICE,
     parse_task_config,
 )
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import available_tasks, find_task
@@ -97,7 +97,7 @@ STOP_WAIT = 5.0
 """Seconds the experiment thread gets to stop after Ctrl-C."""
 
 
-class EvolutionNode(Node):
+class EvolutionNode(CheckedNode):
     """Runs one experiment and publishes its progress.
 
     Parameters (ROS), all read-only:

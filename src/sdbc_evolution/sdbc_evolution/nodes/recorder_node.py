@@ -50,7 +50,6 @@ import rclpy
 from rclpy.callback_groups import CallbackGroup
 from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 from sdbc_sim.nodes.interface import (
@@ -59,6 +58,7 @@ from sdbc_sim.nodes.interface import (
     RECORDER_READY_TOPIC,
     TASK_STATE_QOS,
 )
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 from std_msgs.msg import Bool
 
@@ -87,7 +87,7 @@ class OwnLoopGroup(CallbackGroup):
         """Never called: nothing of this group begins execution."""
 
 
-class RecorderNode(Node):
+class RecorderNode(CheckedNode):
     """Records ``topics`` into the bag at ``output``.
 
     Args:
@@ -110,7 +110,12 @@ class RecorderNode(Node):
             )
         except Exception as error:  # rclpy raises its own validation errors
             raise ValueError(f"recorder: bad topic name: {error}") from None
-        self.bag = BagWriter(output)
+        if output.exists():
+            raise FileExistsError(f"bag {output} exists already; not overwriting")
+        # Written only once the program has checked the node's parameters
+        # (open_bag): a refused start leaves no bag behind.
+        self.output = output
+        self._bag: BagWriter | None = None
         self._subscriptions_by_topic: dict[str, Subscription] = {}
         self._own_loop = OwnLoopGroup()
         self._interrupt = GuardCondition(None, None, context=self.context)
@@ -118,6 +123,17 @@ class RecorderNode(Node):
         self._ready = self.create_publisher(Bool, RECORDER_READY_TOPIC, LATCHED_QOS)
         self.is_ready = False
         self._unmatched: list[str] = []
+
+    def open_bag(self) -> None:
+        """Creates the bag; before :meth:`record`."""
+        self._bag = BagWriter(self.output)
+
+    @property
+    def bag(self) -> BagWriter:
+        """The bag being written (:meth:`open_bag`)."""
+        if self._bag is None:
+            raise RuntimeError("the recorder's bag is not open")
+        return self._bag
 
     @property
     def missing(self) -> list[str]:
@@ -241,6 +257,8 @@ class RecorderNode(Node):
     def close(self) -> None:
         """Closes the bag and says what it holds (on stderr: by now Ctrl-C may
         have shut the ROS context, and its logger with it)."""
+        if self._bag is None:
+            return  # refused before it was opened
         self.bag.close()
         counts = ", ".join(f"{t}: {n}" for t, n in self.bag.counts.items())
         print(
@@ -287,6 +305,7 @@ def _record(startup: Startup, nodes: Sequence[RecorderNode]) -> int:
     # The services (parameters, type description) are answered by the executor in
     # a thread of their own; the messages by the recording loop.
     threading.Thread(target=startup.executor.spin, name="services", daemon=True).start()
+    nodes[0].open_bag()
     nodes[0].record()
     return 0
 

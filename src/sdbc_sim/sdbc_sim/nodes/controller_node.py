@@ -50,7 +50,6 @@ from rclpy.executors import (
     Executor,
 )
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from sdbc_msgs.msg import RobotCommand, SensorReadings
@@ -65,6 +64,7 @@ from sdbc_sim.nodes.interface import (
     pushed_namespace,
     robot_namespace,
 )
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.shutdown import StopSignals
 from sdbc_sim.nodes.startup import NodeProgram, Startup, run_node_program
 
@@ -96,7 +96,7 @@ def genome_problem(values: Sequence[float], shape: NetworkShape) -> str | None:
     return None
 
 
-class ControllerNode(Node):
+class ControllerNode(CheckedNode):
     """The controller of one robot.
 
     Parameters (ROS):

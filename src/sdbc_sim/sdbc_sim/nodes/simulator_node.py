@@ -54,7 +54,6 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
 )
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.node import Node
 from rclpy.publisher import Publisher
 from visualization_msgs.msg import MarkerArray
 
@@ -72,6 +71,7 @@ from sdbc_sim.nodes.interface import (
 )
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
 from sdbc_sim.nodes.markers import markers_from_task_state
+from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.startup import NodeProgram, run_node_program, spin_until_stopped
 from sdbc_sim.physics import MODELS, Model, PhysicsSettings
 from sdbc_sim.task_state_msgs import task_state_to_msg
@@ -131,7 +131,7 @@ class TrialOutcome:
     length: int
 
 
-class SimulatorNode(Node):
+class SimulatorNode(CheckedNode):
     """Runs trials of one task in lockstep with the controller nodes.
 
     Parameters (ROS):

@@ -6,6 +6,9 @@ command line into ROS arguments and its own, start rclpy, make its node(s) on an
 executor, serve until it is done or stopped, and leave cleanly. A
 :class:`NodeProgram` says what differs; :func:`run_node_program` does the rest.
 
+Each node's start-up overrides are checked once it is made: a name it does not
+declare ends the program before any work (:mod:`sdbc_sim.nodes.parameters`).
+
 Exit status: 0 done, 2 bad arguments or parameters (the message names them), or
 what the program's ``serve`` returns.
 """
@@ -31,6 +34,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from sdbc_sim.nodes.interface import UsageError, split_ros_arguments
+from sdbc_sim.nodes.parameters import UndeclaredParameters, check_overrides
 from sdbc_sim.nodes.shutdown import StopSignals, flush_publishers
 
 NodeT = TypeVar("NodeT", bound=Node)
@@ -172,8 +176,12 @@ def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) ->
     try:
         for node in program.make_nodes(startup):
             nodes.append(node)
+            check_overrides(node, ros_argv)
             executor.add_node(node)
         return program.serve(startup, nodes)
+    except UndeclaredParameters as error:
+        print(f"{program.name}: error: {error}", file=sys.stderr)
+        return 2
     except program.errors as error:
         print(f"{program.name}: error: {error}", file=sys.stderr)
         return 2
