@@ -52,7 +52,6 @@ from typing import Any, TypeVar
 import numpy as np
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException
 from sdbc_sim.nodes.interface import (
     BEST_GENOME_TOPIC,
     DISPLAY_QOS,
@@ -197,6 +196,7 @@ class EvolutionNode(CheckedNode):
         self.task = self._build_task()
         self.stop = threading.Event()
         self.finished = threading.Event()
+        self.complete = False  # every generation done (not only stopped)
         self.failure: str | None = None
         self.best_genome: np.ndarray | None = None
         self.best_generation = -1
@@ -351,7 +351,8 @@ class EvolutionNode(CheckedNode):
                         self._publish(experiment, record, population, started)
                         if self.replay_after_generation:
                             self._replay_or_stop_replaying()
-            if not self.stop.is_set():
+                    self.complete = experiment.finished
+            if self.complete:
                 self.get_logger().info(f"run complete: results in {self.out}")
         except Exception as err:  # the thread's failure must reach the exit status
             if not self.stop.is_set():
@@ -444,23 +445,34 @@ class EvolutionNode(CheckedNode):
 
 def _run_experiment(startup: Startup, nodes: Sequence[EvolutionNode]) -> int:
     """Runs the experiment in a thread of its own while the executor serves the
-    replay service and the graph client's answers."""
+    replay service and the graph client's answers, until it is done or Ctrl-C or
+    SIGTERM asks to stop (the context stays up meanwhile: the experiment thread
+    may still be publishing)."""
     node = nodes[0]
     thread = threading.Thread(target=node.run, name="experiment", daemon=True)
     thread.start()
+    requested = startup.stop.requested
     try:
         while not (node.finished.is_set() and node.exit_when_done):
+            if requested.is_set():
+                break
             startup.executor.spin_once(timeout_sec=0.2)
-        return 1 if node.failure else 0
-    except (KeyboardInterrupt, ExternalShutdownException):
+    finally:
         node.stop.set()
+        thread.join(STOP_WAIT)
+    if node.failure:
+        return 1
+    if node.complete:
+        if requested.is_set():
+            print(
+                f"evolution_node: run complete: results in {node.out}", file=sys.stderr
+            )
+    else:
         print(
             f"evolution_node: interrupted; resume with resume:=true output:={node.out}",
             file=sys.stderr,
         )
-        return 0
-    finally:
-        thread.join(STOP_WAIT)
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -470,7 +482,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             make_nodes=lambda startup: [EvolutionNode()],
             serve=_run_experiment,
             threads=3,
-            signals="rclpy",
         ),
         argv,
     )
