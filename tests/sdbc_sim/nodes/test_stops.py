@@ -122,29 +122,28 @@ def read_until(process: subprocess.Popen[str], text: str) -> str:
     raise AssertionError(f"no {text!r} in time:\n{''.join(seen)}")
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
-def test_a_finished_run_stops_saying_it_is_complete(signum, tmp_path):
-    process = evolution(tmp_path, 2)
+def stop_a_run(tmp_path: Path, generations: int, after: str, signum: int) -> str:
+    """Starts a run of ``generations``, stops it with ``signum`` once its output
+    shows ``after``; returns its output."""
+    process = evolution(tmp_path, generations)
     try:
-        read_until(process, "run complete")
-        output = stop(process, signum)
+        read_until(process, after)
+        return stop(process, signum)
     finally:
         if process.poll() is None:
             process.kill()
             process.communicate()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
+def test_a_finished_run_stops_saying_it_is_complete(signum, tmp_path):
+    output = stop_a_run(tmp_path, 2, "run complete", signum)
     assert f"evolution_node: run complete: results in {tmp_path / 'run'}" in output
     assert "interrupted" not in output
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
 def test_an_unfinished_run_stops_saying_how_to_resume(signum, tmp_path):
-    process = evolution(tmp_path, 10_000)
-    try:
-        read_until(process, "generation 1:")
-        output = stop(process, signum)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+    output = stop_a_run(tmp_path, 10_000, "generation 1:", signum)
     assert "evolution_node: interrupted; resume with resume:=true" in output
     assert "run complete" not in output
