@@ -2,7 +2,8 @@
 
 The node ``recorder`` subscribes to each requested topic as soon as the topic
 appears in the graph (its type read from the graph), and writes every message
-as received, stamped with its time of arrival, through
+as received, stamped with its time of arrival (wall time, as ``ros2 bag record``
+does), through
 :class:`sdbc_evolution.graph.bags.BagWriter`. Ctrl-C (SIGINT) or SIGTERM closes the bag
 cleanly: what has arrived is taken, the MCAP file finished and ``metadata.yaml``
 written.
@@ -26,6 +27,13 @@ an executor thread answers its parameter and type description services, while th
 subscriptions belong to a callback group that executors leave alone.
 The bag carries each topic's offered QoS, as ``ros2 bag record`` writes it.
 
+With ``use_sim_time`` the bag's timeline is the trial's: a message whose first
+field is a header (or a time, as ``/clock``'s) is written at that stamp, the
+simulated instant it describes, every other at the node's simulated clock. Arrival
+times would not do: a message can arrive before the ``/clock`` tick of its step,
+and would then be written a step early. Record ``/clock`` too, for players and
+plots that follow it.
+
 Usage::
 
     recorder --output bags/trial_7 --topics /task_state /robot_0/sensors
@@ -39,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import signal
+import struct
 import sys
 import threading
 import time
@@ -66,6 +75,22 @@ from sdbc_evolution.graph.bags import BagWriter, bag_qos, message_class
 
 DISCOVERY_PERIOD = 0.2
 """Seconds between looks at the graph for requested topics not yet recorded."""
+STAMP_TYPES = ("std_msgs/Header", "builtin_interfaces/Time")
+"""Types of a message's first field whose stamp (a time first: int32 seconds,
+uint32 nanoseconds) is read from the serialised bytes."""
+_STAMP = {0: struct.Struct(">iI"), 1: struct.Struct("<iI")}
+"""The stamp after the 4-byte CDR encapsulation header, by its endianness flag."""
+
+
+def message_stamp_ns(raw: bytes) -> int | None:
+    """The stamp of a serialised message whose first field is a stamp (see
+    :data:`STAMP_TYPES`), nanoseconds; None if the bytes are too short or of an
+    unknown encapsulation."""
+    layout = _STAMP.get(raw[1]) if len(raw) >= 12 else None
+    if layout is None:
+        return None
+    sec, nanosec = layout.unpack_from(raw, 4)
+    return sec * 1_000_000_000 + nanosec
 
 
 def _ignore(_: bytes) -> None:
@@ -117,6 +142,8 @@ class RecorderNode(CheckedNode):
         self.output = output
         self._bag: BagWriter | None = None
         self._subscriptions_by_topic: dict[str, Subscription] = {}
+        self._stamped: set[str] = set()  # topics whose messages carry a stamp first
+        self.sim_time = False
         self._own_loop = OwnLoopGroup()
         self._interrupt = GuardCondition(None, None, context=self.context)
         self.stopping = False
@@ -187,6 +214,10 @@ class RecorderNode(CheckedNode):
         self._subscriptions_by_topic[topic] = self.create_subscription(
             msg_class, topic, _ignore, qos, raw=True, callback_group=self._own_loop
         )
+        described: Any = msg_class  # a generated ROS message class
+        fields = list(described.get_fields_and_field_types().values())
+        if fields and fields[0] in STAMP_TYPES:
+            self._stamped.add(topic)
         self.get_logger().info(f"recording {topic} ({msgtype})")
 
     def unmatched(self) -> list[str]:
@@ -219,6 +250,7 @@ class RecorderNode(CheckedNode):
     def record(self) -> None:
         """Records until :meth:`request_stop` (Ctrl-C, SIGTERM), then takes what is
         still waiting."""
+        self.sim_time = bool(self.get_parameter("use_sim_time").value)
         wait_set = None
         n_waited = -1
         next_look = 0.0
@@ -251,8 +283,17 @@ class RecorderNode(CheckedNode):
 
     def _take_all(self, topic: str, subscription: Subscription) -> None:
         handle = subscription.handle
+        stamped = self.sim_time and topic in self._stamped
         while (taken := handle.take_message(subscription.msg_type, True)) is not None:
-            self.bag.write(topic, time.time_ns(), taken[0])
+            raw = taken[0]
+            stamp = message_stamp_ns(raw) if stamped else None
+            if stamp is None:
+                stamp = (
+                    self.get_clock().now().nanoseconds
+                    if self.sim_time
+                    else time.time_ns()
+                )
+            self.bag.write(topic, stamp, raw)
 
     def close(self) -> None:
         """Closes the bag and says what it holds (on stderr: by now Ctrl-C may

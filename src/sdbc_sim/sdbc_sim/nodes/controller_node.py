@@ -7,6 +7,9 @@ reading's trial id, step and robot index (the simulator's lockstep matches on th
 The outputs are those of :func:`sdbc_sim.network.forward`, the engine's own
 network arithmetic, so a robot computes here exactly what it computes in a batch.
 
+A command is stamped with the wall time of its answer or, with ``use_sim_time``,
+with its readings' stamp (the simulated time of the step it answers).
+
 A genome is checked when it is set, at start-up (``-p`` or ``--params-file``) or
 later (``ros2 param set``, the evolution node): it must have the task network's
 number of weights, W = (I + 1) H + (H + 1) O, all finite. A bad one is rejected with
@@ -151,6 +154,7 @@ class ControllerNode(CheckedNode):
         self.shape = build_task(task_name, task_config).network
         self._genome: np.ndarray | None = None
         self._silent_warned = False
+        self._sim_time = bool(self.get_parameter("use_sim_time").value)
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._declaring = True
@@ -205,6 +209,8 @@ class ControllerNode(CheckedNode):
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
+            if parameter.name == "use_sim_time":
+                self._sim_time = bool(parameter.value)
             if parameter.name == "genome" and parameter.type_ != Parameter.Type.NOT_SET:
                 self._genome = np.asarray(parameter.value, dtype=np.float64)
                 self._silent_warned = False
@@ -233,9 +239,14 @@ class ControllerNode(CheckedNode):
         command.trial_id = readings.trial_id
         command.step = readings.step
         command.robot = readings.robot
-        command.header.stamp.sec, command.header.stamp.nanosec = divmod(
-            time.time_ns(), 1_000_000_000
-        )
+        if self._sim_time:
+            # The simulated instant of the readings: simulated time stands still
+            # while the simulator waits for the commands.
+            command.header.stamp = readings.header.stamp
+        else:
+            command.header.stamp.sec, command.header.stamp.nanosec = divmod(
+                time.time_ns(), 1_000_000_000
+            )
         self.publisher.publish(command)
 
 

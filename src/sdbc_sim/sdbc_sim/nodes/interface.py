@@ -65,6 +65,13 @@ TASK_STATE_TOPIC = "task_state"
 """sdbc_msgs/TaskState of the running trial, every step."""
 MARKERS_TOPIC = "markers"
 """visualization_msgs/MarkerArray of the running trial, for RViz or Foxglove."""
+POSES_TOPIC = "poses"
+"""geometry_msgs/PoseArray of the running trial's bodies, every step: position and
+heading of each, the controlled robots first (pose i is robot i's)."""
+CLOCK_TOPIC = "/clock"
+"""rosgraph_msgs/Clock, the simulated time, published by the simulator. Absolute,
+as every ROS 2 node with ``use_sim_time`` reads it: two graphs with simulated time
+in one domain remap it (``-r /clock:=/team_a/clock`` on every node of a graph)."""
 RUN_TRIAL_SERVICE = "run_trial"
 """sdbc_msgs/srv/RunTrial, offered by the simulator."""
 GENERATION_STATS_TOPIC = "generation_stats"
@@ -113,6 +120,15 @@ DISPLAY_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 """Markers and generation statistics: reliable, shallow."""
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=TASK_STATE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""The simulated clock: reliable and a trial deep, so that a recorder gets every
+step's tick; rclpy's own ``use_sim_time`` subscription (best effort, one deep)
+matches it."""
 LATCHED_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,

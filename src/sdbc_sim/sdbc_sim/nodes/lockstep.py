@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from rclpy.callback_groups import CallbackGroup
 from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -175,10 +176,14 @@ class Lockstep:
             while subscription.handle.take_message(RobotCommand, False) is not None:
                 pass
 
-    def publish(self, trial_id: int, step: int, inputs: np.ndarray) -> None:
+    def publish(
+        self, trial_id: int, step: int, inputs: np.ndarray, stamp: Time | None = None
+    ) -> None:
         """Publishes every robot's readings (N, I) for step ``step`` of trial
-        ``trial_id``: the robots are to answer with their commands for that step."""
-        stamp = self._clock.now().to_msg()
+        ``trial_id``: the robots are to answer with their commands for that step.
+        ``stamp``: the readings' (default: now, by the node's clock)."""
+        if stamp is None:
+            stamp = self._clock.now().to_msg()
         for i, (publisher, readings) in enumerate(
             zip(self._publishers, self._readings, strict=True)
         ):

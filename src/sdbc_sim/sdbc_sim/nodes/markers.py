@@ -4,14 +4,22 @@ Every task renders without task-specific code, from the entity groups alone:
 circles (robots, the prey, a station) as flat cylinders, points as spheres, and
 polygons (walls, the gate, a boundary) as line lists, one colour per group, plus a
 text line with the trial and step. Each array starts with a DELETEALL marker, so
-entities that leave a group (an escaped robot, a captured prey) vanish.
+entities that leave a group (an escaped robot, a captured prey) vanish. Given the
+bodies' poses (:func:`body_poses`), an arrow per body shows its heading.
+
+The frame is the task state's, ``arena`` (the arena's own coordinates, x to the
+right, y up, headings counter-clockwise from x): the fixed frame to choose in
+RViz or Foxglove. No TF is published; nothing moves the arena.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from typing import Any
 
-from geometry_msgs.msg import Point
+import numpy as np
+from geometry_msgs.msg import Point, Pose, PoseArray
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -34,6 +42,29 @@ LINE_WIDTH = 0.5
 """Width of polygon lines, arena units."""
 TEXT_HEIGHT = 5.0
 """Height of the trial/step caption, arena units."""
+ARROW_WIDTH = 0.4
+"""Shaft width of a heading arrow, arena units; its length is the body's diameter."""
+HEADING_NS = "heading"
+"""Marker namespace of the heading arrows (id: the body's index)."""
+
+
+def body_poses(header: Any, positions: np.ndarray, angles: np.ndarray) -> PoseArray:
+    """The bodies' poses as a ``geometry_msgs/PoseArray``.
+
+    Args:
+        header: Frame and stamp of the poses (the task state's).
+        positions: (R, 2) body centres in the arena frame.
+        angles: (R,) headings, radians counter-clockwise from the x axis: a
+            rotation about z, as a unit quaternion.
+    """
+    poses = []
+    for (x, y), angle in zip(positions.tolist(), angles.tolist(), strict=True):
+        pose = Pose()
+        pose.position.x, pose.position.y = x, y
+        pose.orientation.z = math.sin(0.5 * angle)
+        pose.orientation.w = math.cos(0.5 * angle)
+        poses.append(pose)
+    return PoseArray(header=header, poses=poses)
 
 
 def _colour(group_index: int) -> ColorRGBA:
@@ -41,8 +72,17 @@ def _colour(group_index: int) -> ColorRGBA:
     return ColorRGBA(r=r, g=g, b=b, a=1.0)
 
 
-def markers_from_task_state(state: Any) -> MarkerArray:
-    """The markers of one ``sdbc_msgs/TaskState`` message, in its frame and stamp."""
+def markers_from_task_state(
+    state: Any, poses: PoseArray | None = None, radii: Sequence[float] = ()
+) -> MarkerArray:
+    """The markers of one ``sdbc_msgs/TaskState`` message, in its frame and stamp.
+
+    Args:
+        state: The task state.
+        poses: The bodies' poses; each gets a heading arrow as long as its
+            diameter (``radii``, in the poses' order).
+        radii: The bodies' radii.
+    """
     header = state.header
     markers = [Marker(header=header, action=Marker.DELETEALL)]
     top = 0.0
@@ -69,6 +109,22 @@ def markers_from_task_state(state: Any) -> MarkerArray:
                 marker.pose.position.y = entity.centre.y
                 top = max(top, entity.centre.y + d)
             markers.append(marker)
+    for b, pose in enumerate(poses.poses if poses is not None else ()):
+        arrow = Marker(
+            header=header,
+            ns=HEADING_NS,
+            id=b,
+            type=Marker.ARROW,
+            # Above its disc, so that the disc does not hide it.
+            pose=Pose(
+                position=Point(x=pose.position.x, y=pose.position.y, z=DISC_HEIGHT),
+                orientation=pose.orientation,
+            ),
+            color=ColorRGBA(r=0.1, g=0.1, b=0.1, a=1.0),
+        )
+        arrow.scale.x = 2.0 * radii[b]
+        arrow.scale.y = arrow.scale.z = ARROW_WIDTH
+        markers.append(arrow)
     caption = Marker(
         header=header,
         ns="caption",

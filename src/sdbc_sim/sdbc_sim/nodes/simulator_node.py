@@ -11,10 +11,21 @@ as ``run_batch``), then, at every step k = 1, 2, ...:
    (:mod:`sdbc_sim.nodes.lockstep`); a robot silent for ``command_timeout``
    seconds aborts the trial with an error naming it;
 2. steps the trial with those outputs, and publishes the readings for step k + 1;
-3. publishes the task state after step k (``task_state``, sdbc_msgs/TaskState)
+3. advances the simulated clock by ``step_period`` seconds and publishes it
+   (``/clock``, rosgraph_msgs/Clock), then the task state after step k
+   (``task_state``, sdbc_msgs/TaskState), the bodies' poses (``poses``,
+   geometry_msgs/PoseArray: position and heading of each body, pose i robot i's)
    and, every ``marker_period`` steps, markers (``markers``,
-   visualization_msgs/MarkerArray), while the controllers compute step k + 1;
-   a topic without subscribers is not built.
+   visualization_msgs/MarkerArray, with an arrow per body for its heading),
+   while the controllers compute step k + 1; a topic without subscribers is not
+   built.
+
+Simulated time starts at 0 when the node starts and advances only with steps:
+trial after trial, it never goes back. With ``use_sim_time`` on, every message of
+a step is stamped with the simulated time of that step (the readings for step k
+with the time before it, what follows step k with the time after it); off (the
+ROS default, as for every node), with wall time. ``/clock`` is published either
+way, so that the other nodes of a graph can follow it with ``use_sim_time``.
 
 So that every reader (a recorder, a characteriser) gets every step, the node
 waits before step 1 until each of its publishers has matched every reader the
@@ -48,6 +59,8 @@ from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseArray
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -55,14 +68,18 @@ from rcl_interfaces.msg import (
 )
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.publisher import Publisher
+from rosgraph_msgs.msg import Clock
 from visualization_msgs.msg import MarkerArray
 
 from sdbc_msgs.msg import TaskState as TaskStateMsg
 from sdbc_msgs.srv import RunTrial
 from sdbc_sim.engine import EngineSettings, TrialStepper
 from sdbc_sim.nodes.interface import (
+    CLOCK_QOS,
+    CLOCK_TOPIC,
     DISPLAY_QOS,
     MARKERS_TOPIC,
+    POSES_TOPIC,
     RUN_TRIAL_SERVICE,
     SIMULATOR_NODE,
     TASK_STATE_QOS,
@@ -70,7 +87,7 @@ from sdbc_sim.nodes.interface import (
     build_task,
 )
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
-from sdbc_sim.nodes.markers import markers_from_task_state
+from sdbc_sim.nodes.markers import body_poses, markers_from_task_state
 from sdbc_sim.nodes.parameters import CheckedNode
 from sdbc_sim.nodes.startup import NodeProgram, run_node_program, spin_until_stopped
 from sdbc_sim.physics import MODELS, Model, PhysicsSettings
@@ -88,6 +105,12 @@ DEFAULT_MARKER_PERIOD = 10
 """Markers are published every this many steps (0: never)."""
 MAX_TIMEOUT = 3600.0
 """Largest timeout a parameter accepts, seconds."""
+DEFAULT_STEP_PERIOD = 0.1
+"""Simulated seconds per step. The tasks have no step length in seconds (the
+engine's speeds are in arena units per step), so this is a convention: 10 Hz, the
+control rate of small e-puck-like robots. The results do not depend on it."""
+MAX_STEP_PERIOD = 3600.0
+"""Largest ``step_period`` accepted, seconds."""
 READER_POLL = 0.02
 """Seconds between checks while waiting for readers to match."""
 
@@ -144,6 +167,8 @@ class SimulatorNode(CheckedNode):
         discovery_timeout: Seconds to wait at a trial's start for every robot's
             controller to connect.
         marker_period: Publish markers every this many steps; 0 for never.
+        step_period: Simulated seconds per step (``/clock``, and the stamps with
+            ``use_sim_time``).
 
     Args:
         interrupt: Triggered on Ctrl-C, to abort a running trial; default:
@@ -200,6 +225,17 @@ class SimulatorNode(CheckedNode):
                 integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1)],
             ),
         )
+        self.declare_parameter(
+            "step_period",
+            DEFAULT_STEP_PERIOD,
+            ParameterDescriptor(
+                description="Simulated seconds per step, for /clock and, with "
+                "use_sim_time, the stamps",
+                floating_point_range=[
+                    FloatingPointRange(from_value=1e-6, to_value=MAX_STEP_PERIOD)
+                ],
+            ),
+        )
         self.task = build_task(task_name, task_config)
         self.characterisation_names = list(self.task.characterisation_names)
         self.physics_model: str = physics_model
@@ -216,6 +252,11 @@ class SimulatorNode(CheckedNode):
             TaskStateMsg, TASK_STATE_TOPIC, TASK_STATE_QOS
         )
         self._markers = self.create_publisher(MarkerArray, MARKERS_TOPIC, DISPLAY_QOS)
+        self._poses = self.create_publisher(PoseArray, POSES_TOPIC, TASK_STATE_QOS)
+        self._clock_publisher = self.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
+        self.sim_time_ns = 0
+        """The simulated time, nanoseconds: step period times the steps so far."""
+        self._radii = self.task.layout.radii
         self.create_service(
             RunTrial, RUN_TRIAL_SERVICE, self._serve, callback_group=trial_group
         )
@@ -260,15 +301,21 @@ class SimulatorNode(CheckedNode):
             stepper.reset(seed)
             marker_period = int(self._parameter("marker_period"))
             timeout = self._parameter("command_timeout")
-            lockstep.publish(trial_id, 1, stepper.sensors())
+            step_ns = round(self._parameter("step_period") * 1e9)
+            sim_stamps = bool(self.get_parameter("use_sim_time").value)
+            self._publish_clock()
+            lockstep.publish(trial_id, 1, stepper.sensors(), self._stamp(sim_stamps))
             while True:
                 step = stepper.step_count + 1
                 stepper.step(lockstep.gather(trial_id, step, timeout))
+                self.sim_time_ns += step_ns
+                self._publish_clock()
+                stamp = self._stamp(sim_stamps)
                 # The next readings go out first: the controllers compute while
                 # this step's task state is built and published.
                 if not stepper.done:
-                    lockstep.publish(trial_id, step + 1, stepper.sensors())
-                self._publish_state(trial_id, step, marker_period)
+                    lockstep.publish(trial_id, step + 1, stepper.sensors(), stamp)
+                self._publish_state(trial_id, step, marker_period, stamp)
                 if stepper.done:
                     break
         except LockstepError as error:
@@ -280,7 +327,26 @@ class SimulatorNode(CheckedNode):
     def trial_publishers(self) -> list[Publisher]:
         """Every publisher of a trial's messages (rclpy's ``publishers`` lists the
         node's own too: parameter events, rosout)."""
-        return [self._task_state, self._markers, *self.lockstep.publishers]
+        return [
+            self._clock_publisher,
+            self._task_state,
+            self._poses,
+            self._markers,
+            *self.lockstep.publishers,
+        ]
+
+    def _stamp(self, simulated: bool) -> Time:
+        """The stamp of what is published now: the simulated time, or the wall
+        time (the node's clock without ``use_sim_time``)."""
+        if simulated:
+            sec, nanosec = divmod(self.sim_time_ns, 1_000_000_000)
+            return Time(sec=sec, nanosec=nanosec)
+        return self.get_clock().now().to_msg()
+
+    def _publish_clock(self) -> None:
+        if self._clock_publisher.get_subscription_count() > 0:
+            sec, nanosec = divmod(self.sim_time_ns, 1_000_000_000)
+            self._clock_publisher.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
 
     def wait_for_readers(self, timeout: float) -> None:
         """Waits until each publisher has matched every reader that the graph
@@ -301,8 +367,11 @@ class SimulatorNode(CheckedNode):
                 return
             time.sleep(READER_POLL)
 
-    def _publish_state(self, trial_id: int, step: int, marker_period: int) -> None:
-        """Publishes the task state after ``step`` and, when due, the markers.
+    def _publish_state(
+        self, trial_id: int, step: int, marker_period: int, stamp: Time
+    ) -> None:
+        """Publishes the task state and the poses after ``step`` and, when due,
+        the markers.
 
         Building the messages costs more than a lockstep exchange, so it is skipped
         for a topic that nobody subscribes to: there is no one to miss them.
@@ -313,15 +382,26 @@ class SimulatorNode(CheckedNode):
             step % marker_period == 0 or step == 1 or done
         )
         markers_due = markers_due and self._markers.get_subscription_count() > 0
-        if not (markers_due or self._task_state.get_subscription_count() > 0):
+        poses_wanted = self._poses.get_subscription_count() > 0
+        if not (
+            markers_due or poses_wanted or self._task_state.get_subscription_count() > 0
+        ):
             return
         msg = task_state_to_msg(
             stepper.state(), self.task.description, 0, trial_id, self.task.name, done
         )
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = stamp
         self._task_state.publish(msg)
+        if not (markers_due or poses_wanted):
+            return
+        # The headings come from the engine's bodies, not the task state: the
+        # task description (and the SDBCs built on it) has no orientation.
+        bodies = stepper.sim.bodies
+        poses = body_poses(msg.header, bodies.position[0], bodies.angle[0])
+        if poses_wanted:
+            self._poses.publish(poses)
         if markers_due:
-            self._markers.publish(markers_from_task_state(msg))
+            self._markers.publish(markers_from_task_state(msg, poses, self._radii))
 
     def _serve(
         self, request: RunTrial.Request, response: RunTrial.Response
