@@ -147,3 +147,55 @@ def gate_escape_graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live
     yield from start_live_graph(
         tmp_path_factory.mktemp("gate_escape_graph"), "gate_escape", config, genome
     )
+
+
+@pytest.fixture
+def start_node(tmp_path: Path):
+    """``start_node(module, *args)``: a node program started as a process (module
+    run with ``python -m``), output on its stdout, with this test's ROS_HOME and
+    import path; every one still running at the end is killed."""
+    import os
+    import subprocess
+    import sys
+
+    started: list[subprocess.Popen[str]] = []
+
+    def start(module: str, *args: str) -> subprocess.Popen[str]:
+        process = subprocess.Popen(
+            [sys.executable, "-m", module, *args],
+            env={
+                **os.environ,
+                "ROS_HOME": str(tmp_path / "ros_home"),
+                "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
+            },
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        started.append(process)
+        return process
+
+    yield start
+    for process in started:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+
+
+@pytest.fixture
+def test_node():
+    """``(node, executor)``: a node of this test in a context of its own, spun by
+    the test (``executor.spin_once``), shut down at the end."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = Node("node_test", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    yield node, executor
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.try_shutdown(context=context)

@@ -3,9 +3,6 @@ robot's namespace under a pushed one, and a namespaced graph runs trials."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
 
 import pytest
@@ -18,16 +15,8 @@ TASK_CONFIG = "'{max_steps: 30}'"
 GRAPH_TIMEOUT = 60.0
 
 
-def node_command(module: str, *args: str) -> list[str]:
-    return [sys.executable, "-m", f"sdbc_sim.nodes.{module}", *args]
-
-
-def environment(ros_home) -> dict[str, str]:
-    return {
-        **os.environ,
-        "ROS_HOME": str(ros_home),
-        "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
-    }
+CONTROLLER = "sdbc_sim.nodes.controller_node"
+SIMULATOR = "sdbc_sim.nodes.simulator_node"
 
 
 @pytest.mark.parametrize(
@@ -50,48 +39,21 @@ def test_the_pushed_namespace_is_read_as_rcl_reads_it(argv, expected):
 
 
 def test_several_robots_in_one_process_keep_their_namespaces_under_a_pushed_one(
-    ros_home,
+    start_node, test_node
 ):
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
     from sdbc_sim.tasks import make_task
 
     from sdbc_msgs.srv import RunTrial
 
+    node, executor = test_node
     genome = "[" + ",".join(["0.1"] * make_task(TASK).genome_length) + "]"
     ros = ["-r", f"__ns:={NAMESPACE}", "-p", f"task:={TASK}"]
     ros += ["-p", f"task_config:={TASK_CONFIG}"]
+    robots = ["--robots", "0", "1", "2", "3"]
     processes = [
-        subprocess.Popen(
-            node_command(
-                "controller_node",
-                "--robots",
-                "0",
-                "1",
-                "2",
-                "3",
-                "--ros-args",
-                *ros,
-                "-p",
-                f"genome:={genome}",
-            ),
-            env=environment(ros_home),
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-        ),
-        subprocess.Popen(
-            node_command("simulator_node", "--ros-args", *ros),
-            env=environment(ros_home),
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-        ),
+        start_node(CONTROLLER, *robots, "--ros-args", *ros, "-p", f"genome:={genome}"),
+        start_node(SIMULATOR, "--ros-args", *ros),
     ]
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = Node("test_namespaces", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
     expected = {(f"{NAMESPACE}/robot_{i}", "controller") for i in range(4)}
     try:
         deadline = time.monotonic() + GRAPH_TIMEOUT
@@ -107,12 +69,9 @@ def test_several_robots_in_one_process_keep_their_namespaces_under_a_pushed_one(
         executor.spin_until_future_complete(future, timeout_sec=GRAPH_TIMEOUT)
         answer = future.result()
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
         for process in processes:
             process.send_signal(2)
-        outputs = [p.communicate(timeout=30)[0].decode() for p in processes]
+        outputs = [p.communicate(timeout=30)[0] for p in processes]
     assert answer is not None and answer.success, (answer, outputs)
     assert answer.length == 30
     assert [p.returncode for p in processes] == [0, 0], outputs

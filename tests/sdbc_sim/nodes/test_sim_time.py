@@ -5,10 +5,7 @@ their headings (also as marker arrows)."""
 from __future__ import annotations
 
 import math
-import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -25,26 +22,11 @@ TIMEOUT = 60.0
 RECORDED = ("/clock", "/task_state", "/poses", "/robot_0/sensors", "/robot_0/command")
 
 
-def start(tmp_path: Path, module: str, *args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-m", module, *args],
-        env={
-            **os.environ,
-            "ROS_HOME": str(tmp_path / "ros_home"),
-            "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
-        },
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-
-
-def record_a_trial(tmp_path: Path, seed: int) -> tuple[Path, object]:
+def record_a_trial(
+    tmp_path: Path, start_node, test_node, seed: int
+) -> tuple[Path, object]:
     """Runs one trial with simulated time on every node and a recorder; returns
     the bag and the trial's answer."""
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
     from sdbc_sim.nodes.interface import LATCHED_QOS
     from sdbc_sim.tasks import make_task
     from std_msgs.msg import Bool
@@ -56,15 +38,13 @@ def record_a_trial(tmp_path: Path, seed: int) -> tuple[Path, object]:
     ros += ["-p", f"task_config:='{{max_steps: {MAX_STEPS}}}'"]
     bag = tmp_path / "bag"
     nodes = {
-        "simulator": start(
-            tmp_path,
+        "simulator": start_node(
             "sdbc_sim.nodes.simulator_node",
             *ros,
             "-p",
             f"step_period:={STEP_PERIOD}",
         ),
-        "controllers": start(
-            tmp_path,
+        "controllers": start_node(
             "sdbc_sim.nodes.controller_node",
             "--robots",
             "0",
@@ -76,8 +56,7 @@ def record_a_trial(tmp_path: Path, seed: int) -> tuple[Path, object]:
             "genome:=[" + ",".join(map(repr, genome.tolist())) + "]",
         ),
     }
-    recorder = start(
-        tmp_path,
+    recorder = start_node(
         "sdbc_evolution.nodes.recorder_node",
         "--output",
         str(bag),
@@ -87,11 +66,7 @@ def record_a_trial(tmp_path: Path, seed: int) -> tuple[Path, object]:
         "-p",
         "use_sim_time:=true",
     )
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = Node("sim_time_test", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
+    node, executor = test_node
     ready: list[bool] = []
     node.create_subscription(Bool, "/recorder/ready", ready.append, LATCHED_QOS)
     try:
@@ -107,9 +82,6 @@ def record_a_trial(tmp_path: Path, seed: int) -> tuple[Path, object]:
         executor.spin_until_future_complete(future, timeout_sec=TIMEOUT)
         answer = future.result()
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
         # The recorder last, so that it gets everything the others sent.
         for process in nodes.values():
             process.send_signal(signal.SIGINT)
@@ -120,10 +92,12 @@ def record_a_trial(tmp_path: Path, seed: int) -> tuple[Path, object]:
     return bag, answer
 
 
-def test_a_recorded_trial_advances_by_the_step_period_per_step(tmp_path):
+def test_a_recorded_trial_advances_by_the_step_period_per_step(
+    tmp_path, start_node, test_node
+):
     from rosbags.highlevel import AnyReader
 
-    bag, answer = record_a_trial(tmp_path, seed=4)
+    bag, answer = record_a_trial(tmp_path, start_node, test_node, seed=4)
     length = answer.length
     times: dict[str, list[int]] = {}
     stamps: dict[str, list[int]] = {}

@@ -3,10 +3,8 @@ unretrieved exception, and the evolution node says whether its run is complete."
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -30,38 +28,15 @@ TINY_RUN = (
 )
 
 
-def start(tmp_path: Path, module: str, *args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-m", module, *args],
-        env={
-            **os.environ,
-            "ROS_HOME": str(tmp_path / "ros_home"),
-            "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
-        },
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-
-
-def wait_for_nodes(process: subprocess.Popen[str], names: set[str]) -> None:
+def wait_for_nodes(test_node, process: subprocess.Popen[str], names: set[str]) -> None:
     """Returns once the graph shows nodes ``names`` (their services up)."""
-    import rclpy
-    from rclpy.node import Node
-
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    probe = Node("stop_test_probe", context=context)
-    try:
-        deadline = time.monotonic() + START_TIMEOUT
-        while not names <= set(probe.get_node_names()):
-            assert process.poll() is None, process.communicate()[0]
-            assert time.monotonic() < deadline, f"{names} did not come up"
-            time.sleep(0.1)
-        time.sleep(0.5)  # past rclpy's start-up, into the program's own loop
-    finally:
-        probe.destroy_node()
-        rclpy.try_shutdown(context=context)
+    node, _ = test_node
+    deadline = time.monotonic() + START_TIMEOUT
+    while not names <= set(node.get_node_names()):
+        assert process.poll() is None, process.communicate()[0]
+        assert time.monotonic() < deadline, f"{names} did not come up"
+        time.sleep(0.1)
+    time.sleep(0.5)  # past rclpy's start-up, into the program's own loop
 
 
 def stop(process: subprocess.Popen[str], signum: int) -> str:
@@ -74,28 +49,22 @@ def stop(process: subprocess.Popen[str], signum: int) -> str:
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
 @pytest.mark.parametrize("name", sorted(PROGRAMS))
-def test_a_node_stops_cleanly(name, signum, tmp_path):
+def test_a_node_stops_cleanly(name, signum, tmp_path, start_node, test_node):
     module, *args = PROGRAMS[name]
     if name == "recorder":
         args = ["--output", str(tmp_path / "bag"), *args]
-    process = start(tmp_path, module, *args)
-    try:
-        wait_for_nodes(process, {name})
-        output = stop(process, signum)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+    process = start_node(module, *args)
+    wait_for_nodes(test_node, process, {name})
+    output = stop(process, signum)
     if name == "recorder":
         assert "recorder: bag" in output and "closed" in output
         assert (tmp_path / "bag" / "metadata.yaml").exists()
 
 
-def evolution(tmp_path: Path, generations: int) -> subprocess.Popen[str]:
+def evolution(start_node, tmp_path: Path, generations: int) -> subprocess.Popen[str]:
     config = tmp_path / "run.yaml"
     config.write_text(TINY_RUN.replace("GENERATIONS", str(generations)))
-    return start(
-        tmp_path,
+    return start_node(
         "sdbc_evolution.nodes.evolution_node",
         "--ros-args",
         "-p",
@@ -122,28 +91,25 @@ def read_until(process: subprocess.Popen[str], text: str) -> str:
     raise AssertionError(f"no {text!r} in time:\n{''.join(seen)}")
 
 
-def stop_a_run(tmp_path: Path, generations: int, after: str, signum: int) -> str:
+def stop_a_run(
+    start_node, tmp_path: Path, generations: int, after: str, signum: int
+) -> str:
     """Starts a run of ``generations``, stops it with ``signum`` once its output
     shows ``after``; returns its output."""
-    process = evolution(tmp_path, generations)
-    try:
-        read_until(process, after)
-        return stop(process, signum)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+    process = evolution(start_node, tmp_path, generations)
+    read_until(process, after)
+    return stop(process, signum)
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
-def test_a_finished_run_stops_saying_it_is_complete(signum, tmp_path):
-    output = stop_a_run(tmp_path, 2, "run complete", signum)
+def test_a_finished_run_stops_saying_it_is_complete(signum, tmp_path, start_node):
+    output = stop_a_run(start_node, tmp_path, 2, "run complete", signum)
     assert f"evolution_node: run complete: results in {tmp_path / 'run'}" in output
     assert "interrupted" not in output
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
-def test_an_unfinished_run_stops_saying_how_to_resume(signum, tmp_path):
-    output = stop_a_run(tmp_path, 10_000, "generation 1:", signum)
+def test_an_unfinished_run_stops_saying_how_to_resume(signum, tmp_path, start_node):
+    output = stop_a_run(start_node, tmp_path, 10_000, "generation 1:", signum)
     assert "evolution_node: interrupted; resume with resume:=true" in output
     assert "run complete" not in output
