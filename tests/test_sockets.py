@@ -244,11 +244,14 @@ def test_a_dask_run_binds_only_loopback(tmp_path: Path) -> None:
             assert evolve.poll() is None, evolve.communicate()[1]
             assert time.monotonic() < deadline, "the Dask run did not get going"
             time.sleep(0.2)
-        # The project's processes: sdbc-evolve and whatever it started. (The
-        # cluster is Dask's: the README says how to keep it on loopback.)
+        # The project's processes: sdbc-evolve and whatever it started.
         sockets = ip_sockets(descendants(evolve.pid))
         assert any(protocol.startswith("tcp") for protocol, _, _ in sockets)
         assert beyond_loopback(sockets) == []
+        # The cluster, started as the README says (--host and --dashboard-address
+        # on loopback; a worker without them listens on 0.0.0.0, measured).
+        cluster_pids = [pid for p in cluster for pid in descendants(p.pid)]
+        assert beyond_loopback(ip_sockets(cluster_pids)) == []
     finally:
         for process in (evolve, *cluster):
             process.terminate()
