@@ -26,6 +26,8 @@ QoS, chosen on purpose:
 - Characterisations (one message per trial) are reliable, transient-local and
   :data:`TASK_STATE_DEPTH` deep: no trial's vector is lost to a late or slow reader.
 - Markers and statistics are for people watching: reliable, shallow.
+- ``/clock`` and the poses are reliable and a trial deep, like the task state, so
+  that a recorder gets every step's tick and pose.
 """
 
 from __future__ import annotations
