@@ -89,7 +89,12 @@ from sdbc_sim.nodes.interface import (
 from sdbc_sim.nodes.lockstep import Lockstep, LockstepError
 from sdbc_sim.nodes.markers import body_poses, markers_from_task_state
 from sdbc_sim.nodes.parameters import CheckedNode
-from sdbc_sim.nodes.startup import NodeProgram, run_node_program, spin_until_stopped
+from sdbc_sim.nodes.startup import (
+    NodeProgram,
+    Startup,
+    run_node_program,
+    spin_until_stopped,
+)
 from sdbc_sim.physics import MODELS, Model, PhysicsSettings
 from sdbc_sim.task_state_msgs import task_state_to_msg
 
@@ -263,10 +268,14 @@ class SimulatorNode(CheckedNode):
         # Automatic trial ids start from the clock, so a restarted simulator
         # never reuses the ids of commands still held by transient-local topics.
         self._next_trial_id = time.time_ns()
+
+    def announce(self) -> None:
+        """Logs what the node simulates (once its parameters are checked)."""
         self.get_logger().info(
             f"task {self.task.name}: {self.task.layout.n_controlled} robots, "
             f"{self.task.network.n_inputs} inputs, {self.task.network.n_outputs} "
-            f"outputs per robot; {physics_model} physics"
+            f"outputs per robot; {self.physics_model} physics; "
+            f"{self._parameter('step_period'):g} s per step"
         )
 
     def _parameter(self, name: str) -> float:
@@ -426,6 +435,11 @@ class SimulatorNode(CheckedNode):
         super().destroy_node()
 
 
+def _serve(startup: Startup, nodes: Sequence[SimulatorNode]) -> int:
+    nodes[0].announce()
+    return spin_until_stopped(startup, nodes)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """The ``simulator_node`` program: serves trials until Ctrl-C; the exit status."""
     # Ctrl-C aborts a running trial and leaves spin, but keeps the context up,
@@ -435,7 +449,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         NodeProgram(
             name="simulator_node",
             make_nodes=lambda startup: [SimulatorNode(interrupt=startup.stop.guard)],
-            serve=spin_until_stopped,
+            serve=_serve,
             threads=2,
             flush=lambda node: node.trial_publishers,
         ),
