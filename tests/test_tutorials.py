@@ -51,7 +51,8 @@ def test_every_tutorial_says_what_it_teaches_and_its_run_time(folder: Path) -> N
         pytest.skip(f"{folder.name} is run by {UNTIMED[folder.name]}")
     assert "What it teaches:" in text, folder.name
     assert re.search(r"\b\d+(\.\d+)? ?(s|seconds|min|minutes)\b", text), folder.name
-    assert list(folder.glob("*.py")), f"{folder.name} has no script"
+    runnable = list(folder.glob("*.py")) or (folder / "pyproject.toml").is_file()
+    assert runnable, f"{folder.name} has neither a script nor a package to install"
 
 
 def test_the_readme_lists_every_tutorial() -> None:
