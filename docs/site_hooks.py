@@ -17,6 +17,11 @@ from mkdocs.structure.files import File, Files
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
 TUTORIALS_SECTION = "Tutorials"
+GUIDE_SECTION = "User guide"
+STUDY = ROOT / "docs" / "study"
+STUDY_SECTION = "The study"
+STUDY_TITLES = {"report": "report", "comparison": "against the study before"}
+"""Nav titles of a study folder's pages, after the folder's name."""
 ROOT_PAGES = {"index.md": "README.md", "contributing.md": "CONTRIBUTING.md"}
 """Pages made from files at the repository's root, which GitHub shows there."""
 ROOT_FILES = ("LICENSE", "CITATION.cff")
@@ -74,13 +79,45 @@ def on_page_content(html: str, **_: Any) -> str:
     return re.sub(r"::(</p>)", r":\1", html)
 
 
+def study_pages() -> list[dict[str, str]]:
+    """The study's overview, then every page of every study folder: a study
+    committed with its report appears without an edit here."""
+    pages = [{"Overview": "study/README.md"}]
+    for page in sorted(STUDY.glob("*/*.md")):
+        title = f"{page.parent.name}: {STUDY_TITLES.get(page.stem, page.stem)}"
+        pages.append({title: page.relative_to(STUDY.parent).as_posix()})
+    return pages
+
+
+def nav_pages(entries: list[Any]) -> set[str]:
+    """Every page a nav (or a section of one) names."""
+    pages: set[str] = set()
+    for entry in entries:
+        value = next(iter(entry.values())) if isinstance(entry, dict) else entry
+        if isinstance(value, list):
+            pages |= nav_pages(value)
+        else:
+            pages.add(value)
+    return pages
+
+
 def on_config(config: MkDocsConfig, **_: Any) -> MkDocsConfig:
-    """Fill the nav's (empty) tutorials section with one page per tutorial."""
+    """Fill the nav's (empty) tutorials and study sections from their folders, and
+    add to the user guide any page of docs/ the nav does not name yet (by its
+    first heading), so that a new page is in the site without an edit here."""
+    named = nav_pages(config.nav or [])
     for entry in config.nav or []:
+        if isinstance(entry, dict) and GUIDE_SECTION in entry:
+            for page in sorted((ROOT / "docs").glob("*.md")):
+                if page.name not in named and page.name not in ROOT_PAGES:
+                    title = page.read_text().splitlines()[0].lstrip("# ").strip()
+                    entry[GUIDE_SECTION].append({title: page.name})
         if isinstance(entry, dict) and TUTORIALS_SECTION in entry:
             entry[TUTORIALS_SECTION] = [
                 {page_title(folder): page_uri(folder)} for folder in tutorials()
             ]
+        if isinstance(entry, dict) and STUDY_SECTION in entry:
+            entry[STUDY_SECTION] = study_pages()
     return config
 
 

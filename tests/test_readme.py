@@ -77,3 +77,23 @@ def test_conformance_of_a_task_file_runs_from_the_callers_folder(
     )
     assert done.returncode == 0, done.stdout + done.stderr
     assert "1/1 checks passed for my_task.py:BeaconHoming" in done.stdout
+
+
+RESULT_ROW = re.compile(
+    r"^\|[^|]+\|[^|]+\| (\d+) / (\d+) / (\d+) \| "
+    r"\[report\]\((docs/study/[\w\-/]+\.md)\) \|$",
+    flags=re.MULTILINE,
+)
+"""A row of the README's results table that gives a report's verdict counts."""
+
+
+def test_the_results_table_gives_each_reports_own_counts() -> None:
+    rows = RESULT_ROW.findall(README.read_text())
+    assert rows, "the README's results table gives no verdict counts"
+    for agree, disagree, inconclusive, report in rows:
+        counted = re.search(
+            rf"Of \d+ claims: {agree} agree, {disagree} disagree, "
+            rf"{inconclusive} inconclusive",
+            (ROOT / report).read_text(),
+        )
+        assert counted, f"{report} does not count {agree} / {disagree} / {inconclusive}"

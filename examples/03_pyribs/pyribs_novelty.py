@@ -10,9 +10,11 @@ archive and how parents are chosen:
 - **pyribs**: ``ProximityArchive`` keeps every behaviour whose novelty (mean
   distance to its k nearest archived neighbours) exceeds a threshold; a
   ``GaussianEmitter`` mutates archived solutions (pyribs' ask/tell ``Scheduler``).
-- **sdbc**: ``NoveltyArchive`` keeps a random sample of past behaviours (the paper's
-  archive); novelty against population + archive ranks the population, and
-  tournaments on that ranking choose the parents of Gaussian mutants.
+- **sdbc**: ``NoveltySearch`` (ask/tell) with a declared treatment of novelty alone:
+  its archive keeps a random sample of past behaviours (the paper's, 3 % of each
+  generation); novelty against population + archive ranks the population, and its
+  GA (elites, tournaments on that ranking, Gaussian mutation of 5 % of the genes)
+  breeds the next.
 
 pyribs' archive stores behaviour vectors for good, so both searches score novelty in
 one fixed space (``BehaviourSpace``): the SDBC standardised with the mean and
@@ -33,13 +35,11 @@ from ribs.archives import ProximityArchive
 from ribs.emitters import GaussianEmitter
 from ribs.schedulers import Scheduler
 from scipy.spatial.distance import cdist
-from sdbc_evolution.ga.archive import NoveltyArchive
-from sdbc_evolution.ga.mutation import gaussian_mutation
 from sdbc_evolution.ga.novelty import novelty_scores
-from sdbc_evolution.ga.selection import tournament_selection
-from sdbc_evolution.sdbc import SdbcExtractor, mean_over_trials
+from sdbc_evolution.sdbc import mean_over_trials
 from sdbc_sim.tasks import make_task
 
+from sdbc_evolution import NoveltySearch, SdbcExtractor
 from sdbc_sim import run_batch
 
 TASK = make_task("predator_prey", max_steps=150)
@@ -48,8 +48,15 @@ TRIALS = 2
 K = 15
 """Nearest neighbours of the novelty metric (the paper's k)."""
 SIGMA = 0.5
-GENE_LOW, GENE_HIGH = -10.0, 10.0
-"""Mutation step and gene bounds: this project's GA defaults (ExperimentConfig)."""
+GENE_LOW, GENE_HIGH = -1.0, 1.0
+"""Mutation step and gene bounds: this project's GA defaults (``GaConfig``)."""
+NOVELTY_ALONE = {
+    "name": "novelty-sdbc",
+    "characterisation": "sdbc",
+    "ranking": "novelty",
+}
+"""A declared treatment: novelty alone over the SDBC vectors it is told, as they
+are (they come standardised in the fixed space already)."""
 
 
 class Evaluator:
@@ -129,29 +136,18 @@ def with_pyribs(
     return {"best": best, "archive": len(archive), "seen": np.concatenate(seen)}
 
 
-def with_sdbc_archive(
-    start: np.ndarray, evaluate: Evaluator, space: BehaviourSpace, generations: int
+def with_novelty_search(
+    search: NoveltySearch, evaluate: Evaluator, space: BehaviourSpace, generations: int
 ) -> Result:
-    rng = np.random.default_rng(1)
-    archive = NoveltyArchive(capacity=1000, probability=0.1)
-    population, best, seen = start, 0.0, []
-    for generation in range(generations):
-        fitness, sdbc = evaluate(population)
+    best, seen = 0.0, []
+    for _ in range(generations):
+        genomes = search.ask()
+        fitness, sdbc = evaluate(genomes)
         behaviours = space(sdbc)
-        novelty = novelty_scores(behaviours, archive.behaviours, K)
-        archive.offer(behaviours, fitness, generation, rng)
-        # Rank by novelty alone, as pyribs' novelty search does (no fitness objective).
-        order = np.lexsort((np.arange(len(novelty)), -novelty))
-        positions = np.empty_like(order)
-        positions[order] = np.arange(len(order))
-        parents = tournament_selection(positions, len(population), 3, rng)
-        # Every gene mutated (probability 1), as pyribs' GaussianEmitter does.
-        population = gaussian_mutation(
-            population[parents], rng, SIGMA, 1.0, GENE_LOW, GENE_HIGH, 100
-        )
+        search.tell(fitness, behaviours)
         best = max(best, float(fitness.max()))
         seen.append(behaviours)
-    return {"best": best, "archive": len(archive), "seen": np.concatenate(seen)}
+    return {"best": best, "archive": len(search.archive), "seen": np.concatenate(seen)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -159,17 +155,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--generations", type=int, default=8)
     parser.add_argument("--population", type=int, default=24)
     args = parser.parse_args(argv)
-    rng = np.random.default_rng(2014)
-    start = rng.uniform(-1.0, 1.0, (args.population, TASK.genome_length))
-
+    search = NoveltySearch(
+        NOVELTY_ALONE,
+        genome_length=TASK.genome_length,
+        population=args.population,
+        seed=2014,
+    )
+    # Its first population (uniform within the gene bounds) is pyribs' too.
+    start = search.ask()
     _, first = Evaluator(0)(start)
     space = BehaviourSpace(first)
     results = {
         "pyribs ProximityArchive": with_pyribs(
             start, Evaluator(1), space, args.generations
         ),
-        "sdbc NoveltyArchive": with_sdbc_archive(
-            start, Evaluator(1), space, args.generations
+        "sdbc NoveltySearch": with_novelty_search(
+            search, Evaluator(1), space, args.generations
         ),
     }
     evaluations = args.generations * args.population

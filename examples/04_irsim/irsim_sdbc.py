@@ -13,10 +13,9 @@ adds what sdbc needs to know about it:
    genome, reading each robot's lidar and the goal's bearing and distance.
 
 From the description alone, ``SdbcExtractor`` derives each trial's behaviour
-characterisation; a generation loop built from sdbc's GA parts (standardisation,
-novelty against population + archive, NSGA-II on fitness and novelty, tournaments,
-Gaussian mutation) evolves the controller: NS-SD, the paper's novelty search over
-the SDBC.
+characterisation, and ``NoveltySearch`` (ask/tell) evolves the controller with NS-SD,
+the paper's novelty search over the SDBC (standardisation against population and
+archive, NSGA-II on fitness and novelty, the paper's GA).
 
     python examples/04_irsim/irsim_sdbc.py            # --generations, --population
 """
@@ -29,12 +28,6 @@ from pathlib import Path
 
 import irsim
 import numpy as np
-from sdbc_evolution.ga.archive import NoveltyArchive
-from sdbc_evolution.ga.mutation import gaussian_mutation
-from sdbc_evolution.ga.novelty import novelty_scores
-from sdbc_evolution.ga.rankings.nsga2 import nsga2_order, positions
-from sdbc_evolution.ga.selection import tournament_selection
-from sdbc_evolution.sdbc import SdbcExtractor, standardise
 from sdbc_sim.task_state import (
     EntityGroupSpec,
     Geometry,
@@ -42,6 +35,8 @@ from sdbc_sim.task_state import (
     TaskDescription,
     TaskState,
 )
+
+from sdbc_evolution import GaConfig, NoveltyConfig, NoveltySearch, SdbcExtractor
 
 WORLD = Path(__file__).resolve().parent / "world.yaml"
 ROBOTS, OBSTACLES = 3, 3
@@ -179,29 +174,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--trials", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    rng = np.random.default_rng(args.seed)
-    population = rng.uniform(-1.0, 1.0, (args.population, GENOME_LENGTH))
-    archive = NoveltyArchive(capacity=1000, probability=0.1)
+    # NS-SD: novelty search over the SDBC, standardised against population and
+    # archive, ranked with fitness by NSGA-II; the paper's GA breeds.
+    search = NoveltySearch(
+        "ns-sd",
+        genome_length=GENOME_LENGTH,
+        population=args.population,
+        seed=args.seed,
+        ga=GaConfig(population_size=args.population, elites=1, tournament_size=2),
+        novelty=NoveltyConfig(k=min(15, args.population - 1)),
+    )
     print(f"SDBC of the ir-sim world: {len(dimension_names())} dimensions, e.g.")
     for name in dimension_names()[:4]:
         print(f"  {name}")
     print("generation  best fitness  mean fitness  archive")
     for generation in range(args.generations):
-        seeds = rng.integers(2**31, size=(args.population, args.trials))
-        fitness, sdbc = evaluate(population, seeds)
-        # NS-SD: novelty of the standardised SDBC against population + archive.
-        population_z, archive_z = standardise(sdbc, archive.behaviours)
-        novelty = novelty_scores(population_z, archive_z, k=min(5, len(sdbc) - 1))
-        archive.offer(sdbc, fitness, generation, rng)
-        order, _, _ = nsga2_order(np.column_stack([fitness, novelty]))
-        best, mean = fitness.max(), fitness.mean()
-        print(f"{generation:>10}  {best:>12.4f}  {mean:>12.4f}  {len(archive):>7}")
-        # Breed: the best of the ranking kept, tournament winners mutated.
-        parents = tournament_selection(positions(order), args.population - 1, 2, rng)
-        children = gaussian_mutation(
-            population[parents], rng, 0.5, 0.2, -10.0, 10.0, 100
-        )
-        population = np.concatenate([population[order[:1]], children])
+        genomes = search.ask()
+        fitness, sdbc = evaluate(genomes, search.trial_seeds(args.trials))
+        search.tell(fitness, sdbc)
+        best, mean, archived = fitness.max(), fitness.mean(), len(search.archive)
+        print(f"{generation:>10}  {best:>12.4f}  {mean:>12.4f}  {archived:>7}")
     return 0
 
 
