@@ -41,7 +41,7 @@ export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
 # after it (sdbc_sim.nodes.startup.keep_dds_on_loopback). Without the profile the
 # range defaults to LOCALHOST.
 # Multi-machine graphs: export FASTRTPS_DEFAULT_PROFILES_FILE= (empty) before
-# sourcing this, and ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (README, "Reliability").
+# sourcing this, and ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (docs/reliability.md).
 _sdbc_profile="$_sdbc_root/scripts/fastdds_localhost.xml"
 if [ -z "${FASTRTPS_DEFAULT_PROFILES_FILE+set}" ] && [ -z "${FASTDDS_DEFAULT_PROFILES_FILE+set}" ]; then
   export FASTRTPS_DEFAULT_PROFILES_FILE="$_sdbc_profile"

@@ -29,8 +29,9 @@ setup(
     maintainer="sdbc team",
     maintainer_email="sdbc@example.org",
     description=(
-        "Batched pymunk simulation of robot teams: the gate escape, resource "
-        "sharing and predator-prey tasks, and the simulator and controller nodes."
+        "Batched pymunk simulation of robot teams: the paper's gate escape, "
+        "resource sharing and predator-prey tasks, aggregation and foraging, and "
+        "the simulator and controller nodes."
     ),
     license="Apache-2.0",
     entry_points={

@@ -14,7 +14,7 @@ interpreter with ``NPY_DISABLE_CPU_FEATURES`` set (:data:`NUMPY_PATHS`): on an
 AVX-512 machine numpy computes float64 ``exp`` and ``arctan2`` with other code
 (SVML), whose last bits differ now and then, and the novelty treatments' runs
 then differ from generation 0 on. (So the numbers of a run depend on the numpy
-paths the CPU takes; the README says so. A CPU without AVX2 would take yet
+paths the CPU takes; docs/platforms.md says so. A CPU without AVX2 would take yet
 other paths; none has been met.)
 
 Re-record (only when the engine's numbers change for a reason of their own, from a

@@ -21,7 +21,7 @@ Where the trials run is the ``evaluator`` parameter:
   genomes are spread over them; the results are those of one graph.
 
 The task may be another system's (a task this project's engine does not have,
-run by another simulator or by robots, see the README's contract): the node then
+run by another simulator or by robots, see the contract in docs/ros2.md): the node then
 needs the ``robots`` and ``genome_length`` parameters, runs ``live`` only, and
 learns the length of the task-specific characterisation and the names of the SDBC
 dimensions from a first trial (genome all zeros, seed 0) before the run starts.

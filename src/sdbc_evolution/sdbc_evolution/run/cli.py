@@ -87,7 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--treatment",
         metavar="NAME|FILE",
         help="a paper treatment (fit, ns-ts, ns-sd, ns-sd+) or a YAML file declaring "
-        "one (see the README, 'Treatments as parts')",
+        "one (see docs/treatments.md)",
     )
     parser.add_argument("--generations", type=int, help="generations to run")
     parser.add_argument("--population", type=int, help="population size")

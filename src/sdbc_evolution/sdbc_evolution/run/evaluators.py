@@ -249,7 +249,7 @@ def _check_batch(
 
 FITNESS_RANGE = (0.0, 1.0)
 """Where the contract of a task (``sdbc_sim.task``) and of an outside simulator
-(the README's "Evolution through another simulator: the contract") puts every
+(docs/ros2.md, "Evolution through another simulator: the contract") puts every
 trial's fitness."""
 CHARACTERISATION_RANGE = (0.0, 1.0)
 """Where the contract puts every value of the task-specific characterisation."""
