@@ -1,4 +1,4 @@
-"""sdbc_sim: a batched pymunk simulator of robot teams, the paper's three tasks and two more.
+"""sdbc_sim: a batched pymunk simulator of robot teams, the paper's tasks and two more.
 
 Importing the package loads nothing heavy: the engine's names below are loaded on
 first use (PEP 562), so ``import sdbc_sim.task_state`` (the task-state

@@ -14,8 +14,9 @@ The client needs the task only through the messages: a task of this project give
 its description up front; for another system's task (``task=None``) the client
 needs the number of robots, learns the task description from the first trial's
 task state messages, and the names of the SDBC dimensions with it
-(:attr:`GraphClient.sdbc_names`). What the client relies on is the contract written
-in docs/ros2.md ("Evolution through another simulator: the contract"): a node ``simulator`` with
+(:attr:`GraphClient.sdbc_names`). What the client relies on is the contract in
+docs/ros2.md ("Evolution through another simulator: the contract"): a node
+``simulator`` with
 ``task`` and ``task_config`` parameters and the ``run_trial`` service, the
 ``task_state`` topic, and a controller node ``robot_<i>/controller`` per robot with
 a double-array ``genome`` parameter. Those names are relative: a client given a

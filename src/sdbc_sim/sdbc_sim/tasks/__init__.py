@@ -50,7 +50,7 @@ ENTRY_POINT_GROUP = "sdbc.tasks"
 HOW_TO_REGISTER = (
     "name a task of your own as package.module:Class or path/to/file.py:Class, or "
     f"register it as an entry point of the group '{ENTRY_POINT_GROUP}' in its "
-    'package\'s pyproject.toml (docs/own-task.md)'
+    "package's pyproject.toml (docs/own-task.md)"
 )
 
 
