@@ -334,7 +334,10 @@ def main() -> None:
     # A graph of its own: this machine only, a domain no other graph is likely on.
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 100))
+    from sdbc_sim.nodes.startup import keep_dds_on_loopback
     from sdbc_sim.tasks import make_task
+
+    keep_dds_on_loopback()
 
     task = make_task(args.task, max_steps=args.steps)
     genome = long_genome(task, args.seed)

@@ -86,20 +86,28 @@ def check_live_characterisations(
     own and the paper's SDBC always come with a trial).
 
     Raises:
-        ValueError: Naming a characterisation that needs the robots' network inputs
-            and outputs: the graph's sensor readings do not say which robots are
-            still in play, so a count over them would differ from the engine's.
+        ValueError: Naming a characterisation that is not an SDBC, and why: one
+            that needs the robots' network inputs and outputs (the graph's sensor
+            readings do not say which robots are still in play, so a count over
+            them would differ from the engine's), or one of the task state that
+            the client does not make.
     """
     others = []
     for spec in characterisations:
         if spec.key in (TASK, SDBC):
             continue
-        if spec.kind != SDBC:
+        if spec.kind != SDBC and spec.needs_network:
             raise ValueError(
                 f"characterisation {spec.key!r} cannot be made on the live graph: it "
                 "needs the robots' network inputs and outputs with which robots are "
                 "in play, which the graph's topics do not carry; evaluate it with "
                 "the batched engine (evaluator: local)"
+            )
+        if spec.kind != SDBC:
+            raise ValueError(
+                f"characterisation {spec.key!r} cannot be made on the live graph: "
+                "the graph client makes only SDBCs from the task state topic; "
+                "evaluate it with the batched engine (evaluator: local)"
             )
         others.append(spec)
     return tuple(others)

@@ -223,6 +223,11 @@ def run_trials(
 def main(argv: Sequence[str] | None = None) -> int:
     """``sdbc-graph``: brings the graph up, and down on Ctrl-C; the exit status."""
     args = build_parser().parse_args(argv)
+    # This process joins the graph too (--trial, the recorder's readiness): it
+    # keeps to loopback as the nodes it starts do, before rclpy reads the range.
+    from sdbc_sim.nodes.startup import keep_dds_on_loopback
+
+    keep_dds_on_loopback()
     with stoppable():
         return _main(args)
 
