@@ -248,15 +248,7 @@ def real_task_state(description: TaskDescription, state: TaskState) -> TaskState
             strings, dates), or a presence or ``active`` that is not bool, naming
             the group, the array and :data:`DTYPE_RULE`.
     """
-    if all(
-        type(array) is np.ndarray and array.dtype == _FLOAT
-        for group in state.groups
-        for array in (group.attributes, group.centres, group.radii, group.segments)
-        if array is not None
-    ) and all(
-        type(array) is np.ndarray and array.dtype == _BOOL
-        for array in (state.active, *(group.present for group in state.groups))
-    ):
+    if _as_declared(state):
         return state
     groups = []
     for g, group in enumerate(state.groups):
@@ -272,6 +264,24 @@ def real_task_state(description: TaskDescription, state: TaskState) -> TaskState
         active=state.active if active is None else active,
         groups=tuple(groups),
     )
+
+
+def _as_declared(state: TaskState) -> bool:
+    """Every array is an ndarray of the dtype :func:`validate_task_state` wants.
+    A plain loop with identity tests (numpy's native dtypes are singletons; any
+    other instance only takes the slow path): the SDBC asks at every step."""
+    if type(state.active) is not np.ndarray or state.active.dtype is not _BOOL:
+        return False
+    for group in state.groups:
+        present = group.present
+        if type(present) is not np.ndarray or present.dtype is not _BOOL:
+            return False
+        for array in (group.attributes, group.centres, group.radii, group.segments):
+            if array is not None and (
+                type(array) is not np.ndarray or array.dtype is not _FLOAT
+            ):
+                return False
+    return True
 
 
 def _real_array(
