@@ -384,9 +384,10 @@ class _StaticShapes:
             return np.asarray(presence.any(axis=1, keepdims=True))
         return np.broadcast_to(presence, (presence.shape[0], width)).copy()
 
-    def fits(self, group: GroupState, presence: np.ndarray) -> bool:
-        """The cache has the slots of ``group`` and no fewer trials."""
-        slots = presence.shape[0]
+    def fits(self, group: GroupState) -> bool:
+        """The cache has the slots of ``group`` and no fewer trials (read from
+        shapes alone: a complete cache costs no presence copy)."""
+        slots = group.present.shape[1]
         width = _batch_width(self.shapes)
         source = group.segments if group.segments is not None else group.centres
         rows = 1 if source is None else source.shape[0]
@@ -652,7 +653,7 @@ class StepFeatures:
                 else:
                     shapes[g] = group_shapes(group, geometry, ws, ("static", g))
                 return shapes[g]
-            if cache is None or not cache.fits(group, presence(g)):
+            if cache is None or not cache.fits(group):
                 cache = self._static[g] = _StaticShapes.read(
                     group, geometry, presence(g)
                 )
