@@ -268,20 +268,25 @@ def real_task_state(description: TaskDescription, state: TaskState) -> TaskState
 
 def _as_declared(state: TaskState) -> bool:
     """Every array is an ndarray of the dtype :func:`validate_task_state` wants.
-    A plain loop with identity tests (numpy's native dtypes are singletons; any
-    other instance only takes the slow path): the SDBC asks at every step."""
-    if type(state.active) is not np.ndarray or state.active.dtype is not _BOOL:
+    A plain loop, identity before equality (numpy's dtypes are singletons, except
+    in arrays from a pickle and their copies): the SDBC asks at every step."""
+    active = state.active
+    if type(active) is not np.ndarray or not _is(active.dtype, _BOOL):
         return False
     for group in state.groups:
         present = group.present
-        if type(present) is not np.ndarray or present.dtype is not _BOOL:
+        if type(present) is not np.ndarray or not _is(present.dtype, _BOOL):
             return False
         for array in (group.attributes, group.centres, group.radii, group.segments):
             if array is not None and (
-                type(array) is not np.ndarray or array.dtype is not _FLOAT
+                type(array) is not np.ndarray or not _is(array.dtype, _FLOAT)
             ):
                 return False
     return True
+
+
+def _is(dtype: np.dtype, expected: np.dtype) -> bool:
+    return dtype is expected or dtype == expected
 
 
 def _real_array(
