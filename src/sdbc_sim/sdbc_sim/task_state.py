@@ -253,15 +253,7 @@ def real_task_state(description: TaskDescription, state: TaskState) -> TaskState
             strings, dates), or a presence or ``active`` that is not bool, naming
             the group, the array and :data:`DTYPE_RULE`.
     """
-    if all(
-        type(array) is np.ndarray and array.dtype == _FLOAT
-        for group in state.groups
-        for array in (group.attributes, group.centres, group.radii, group.segments)
-        if array is not None
-    ) and all(
-        type(array) is np.ndarray and array.dtype == _BOOL
-        for array in (state.active, *(group.present for group in state.groups))
-    ):
+    if _as_declared(state):
         return state
     groups = []
     for g, group in enumerate(state.groups):
@@ -277,6 +269,29 @@ def real_task_state(description: TaskDescription, state: TaskState) -> TaskState
         active=state.active if active is None else active,
         groups=tuple(groups),
     )
+
+
+def _as_declared(state: TaskState) -> bool:
+    """Every array is an ndarray of the dtype :func:`validate_task_state` wants.
+    A plain loop, identity before equality (numpy's dtypes are singletons, except
+    in arrays from a pickle and their copies): the SDBC asks at every step."""
+    active = state.active
+    if type(active) is not np.ndarray or not _is(active.dtype, _BOOL):
+        return False
+    for group in state.groups:
+        present = group.present
+        if type(present) is not np.ndarray or not _is(present.dtype, _BOOL):
+            return False
+        for array in (group.attributes, group.centres, group.radii, group.segments):
+            if array is not None and (
+                type(array) is not np.ndarray or not _is(array.dtype, _FLOAT)
+            ):
+                return False
+    return True
+
+
+def _is(dtype: np.dtype, expected: np.dtype) -> bool:
+    return dtype is expected or dtype == expected
 
 
 def _real_array(

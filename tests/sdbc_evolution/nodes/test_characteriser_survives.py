@@ -279,3 +279,51 @@ def test_the_node_state_stays_bounded(ros_home) -> None:
     finally:
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_any_failure_in_a_callback_drops_the_trial_not_the_node(
+    ros_home, monkeypatch
+) -> None:
+    """A MemoryError (or any exception) inside the extractor drops that trial with
+    its reason; the next trial is characterised."""
+    import rclpy
+    from sdbc_evolution.nodes.characteriser_node import CharacteriserNode
+    from sdbc_evolution.sdbc.messages import MessageSdbcExtractor
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = CharacteriserNode(context=context)
+    errors: list[str] = []
+    monkeypatch.setattr(node, "get_logger", lambda: _Logger(errors))
+    original = MessageSdbcExtractor.add
+
+    def add(self, msg):
+        if msg.trial_id == 1:
+            raise MemoryError("Unable to allocate 9.31 GiB")
+        return original(self, msg)
+
+    monkeypatch.setattr(MessageSdbcExtractor, "add", add)
+    try:
+        for msg in valid_trial(1) + valid_trial(2):
+            node._on_task_state(msg)
+        assert node.published == 1
+        assert node.dropped == 1
+        assert any(
+            "trial 1 dropped, not characterised: Unable to allocate 9.31 GiB" in e
+            for e in errors
+        ), errors
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+class _Logger:
+    """Keeps what the node logs."""
+
+    def __init__(self, lines: list[str]) -> None:
+        self.lines = lines
+
+    def error(self, text: str, **_) -> None:
+        self.lines.append(text)
+
+    warning = info = error

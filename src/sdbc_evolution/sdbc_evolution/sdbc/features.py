@@ -385,13 +385,12 @@ class _StaticShapes:
             return np.asarray(presence.any(axis=1, keepdims=True))
         return np.broadcast_to(presence, (presence.shape[0], width)).copy()
 
-    def fits(self, group: GroupState, presence: np.ndarray) -> bool:
-        """The cache has the slots of ``group`` and no fewer trials."""
-        slots = presence.shape[0]
-        width = _batch_width(self.shapes)
+    def fits(self, group: GroupState) -> bool:
+        """The cache has no fewer trials than ``group``'s shapes (its slots are
+        the group's: a change of slot counts empties the caches)."""
         source = group.segments if group.segments is not None else group.centres
         rows = 1 if source is None else source.shape[0]
-        return self.known.shape[0] == slots and (rows == 1 or rows == width)
+        return rows == 1 or rows == _batch_width(self.shapes)
 
     def update(
         self, group: GroupState, geometry: Geometry, presence: np.ndarray, ws: Workspace
@@ -594,6 +593,7 @@ class StepFeatures:
             # a message stream's counts follow its entities, and keeping an
             # array for every count seen would grow without bound.
             ws.clear()
+            self._static.clear()
             self._slot_counts = slot_counts
         if trials is not None:
             state = self._gather(state, trials)
@@ -653,7 +653,7 @@ class StepFeatures:
                 else:
                     shapes[g] = group_shapes(group, geometry, ws, ("static", g))
                 return shapes[g]
-            if cache is None or not cache.fits(group, presence(g)):
+            if cache is None or not cache.fits(group):
                 cache = self._static[g] = _StaticShapes.read(
                     group, geometry, presence(g)
                 )
@@ -668,11 +668,8 @@ class StepFeatures:
             else:
                 total[f] = _slot_sum(d, axes)
 
-        def slots(g: int) -> int:
-            return int(state.groups[g].present.shape[1])
-
         def mask(g: int) -> np.ndarray:
-            return loops.none_absent(slots(g)) if full[g] else absence(g)
+            return loops.none_absent(slot_counts[g]) if full[g] else absence(g)
 
         fused = self.fused
         constant = self._constant_counts
@@ -696,7 +693,7 @@ class StepFeatures:
                     count[f] = size(g)
             elif feature.kind is FeatureKind.DISPERSION:
                 # Eq. 4 as the mean over unordered pairs i < j of present entities.
-                i, j = slot_pairs(slots(g), None)
+                i, j = slot_pairs(slot_counts[g], None)
                 shapes_g = shape(g)
                 if not (
                     fused
@@ -737,7 +734,7 @@ class StepFeatures:
             else:
                 # Eq. 5: the mean over all pairs of present entities of g and h.
                 h = feature.second_group
-                first, second = slot_pairs(slots(g), slots(h))
+                first, second = slot_pairs(slot_counts[g], slot_counts[h])
                 a_shapes, b_shapes = shape(g), shape(h)
                 if not (
                     fused
