@@ -25,7 +25,6 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-import yaml
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchContext, LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction
@@ -61,9 +60,11 @@ BOOLEANS = {"true": True, "false": False}
 
 
 def _boolean(name: str, text: str) -> bool:
+    from sdbc_sim.limits import excerpt
+
     if text.lower() not in BOOLEANS:
         raise ValueError(
-            f"launch argument {name}: expected true or false, got {text!r}"
+            f"launch argument {name}: expected true or false, got {excerpt(text)}"
         )
     return BOOLEANS[text.lower()]
 
@@ -81,6 +82,7 @@ def _graph(context: LaunchContext) -> list[Any]:
     )
     from sdbc_evolution.graph.shm import remove_stale_dds_files
     from sdbc_sim.nodes.interface import EVOLUTION_NODE
+    from sdbc_sim.yaml_input import parse_yaml
 
     given = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
     launch = {}
@@ -121,7 +123,7 @@ def _graph(context: LaunchContext) -> list[Any]:
         if process.parameters:
             # Only the evolution node's graph_namespaces, which no section sets.
             parameters.append(
-                {name: yaml.safe_load(value) for name, value in process.parameters}
+                {name: parse_yaml(value, name) for name, value in process.parameters}
             )
         actions.append(
             Node(

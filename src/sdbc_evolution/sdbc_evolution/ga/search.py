@@ -51,6 +51,7 @@ from typing import Any
 
 import numpy as np
 from sdbc_sim.fitness import FITNESS_MEANS, controller_fitness
+from sdbc_sim.limits import excerpt
 from sdbc_sim.settings import to_plain
 from sdbc_sim.task_state import TaskDescription, TaskState
 
@@ -163,7 +164,9 @@ class NoveltySearch:
             "treatment",
         )
         if isinstance(genome_length, bool) or not isinstance(genome_length, int):
-            raise ValueError(f"genome_length must be an integer, got {genome_length!r}")
+            raise ValueError(
+                f"genome_length must be an integer, got {excerpt(genome_length)}"
+            )
         if genome_length < 1:
             raise ValueError(f"genome_length must be at least 1, got {genome_length}")
         ga = ga or GaConfig()
@@ -174,7 +177,7 @@ class NoveltySearch:
                 f"fitness_mean {fitness_mean!r}: known {', '.join(FITNESS_MEANS)}"
             )
         if task is not None and not isinstance(task, TaskDescription):
-            raise ValueError(f"task must be a TaskDescription, got {task!r}")
+            raise ValueError(f"task must be a TaskDescription, got {excerpt(task)}")
         self.genome_length = genome_length
         self.task = task
         self.ga = ga
@@ -187,7 +190,9 @@ class NoveltySearch:
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             self.rng = run_generators(int(seed))[0]
         else:
-            raise ValueError(f"seed must be an integer or a Generator, got {seed!r}")
+            raise ValueError(
+                f"seed must be an integer or a Generator, got {excerpt(seed)}"
+            )
         n = ga.population_size
         self.generation = 0
         """Generations told so far (the index of the next one)."""
@@ -232,7 +237,9 @@ class NoveltySearch:
         """(N, T) int64 trial seeds from the GA's generator, fresh at every call;
         sdbc-evolve draws them between ask and tell, for the engine's trials."""
         if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
-            raise ValueError(f"trials must be a positive integer, got {trials!r}")
+            raise ValueError(
+                f"trials must be a positive integer, got {excerpt(trials)}"
+            )
         return self.rng.integers(
             0, TRIAL_SEED_BOUND, size=(self.population_size, trials), dtype=np.int64
         )

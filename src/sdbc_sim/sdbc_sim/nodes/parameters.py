@@ -24,15 +24,14 @@ name with a reason that names the declared ones (what ``ros2 param set`` shows).
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
-import yaml
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from sdbc_sim.nodes.interface import ros_flag_values
+from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 WILDCARDS = ("*", "**")
 """The last part of a parameters file's node key that makes it a shared key."""
@@ -90,8 +89,8 @@ def shared_names(ros_args: Sequence[str]) -> set[str]:
     names: set[str] = set()
     for path in ros_flag_values(ros_args, frozenset({"--params-file"})):
         try:
-            data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            data = read_yaml(path, "parameters file")
+        except YamlRefused:
             continue  # rcl read it before the node existed, or refused it
         for key, parameters in _node_sections(data):
             if key.rstrip("/").rsplit("/", 1)[-1] in WILDCARDS:
