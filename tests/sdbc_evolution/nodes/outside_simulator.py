@@ -11,7 +11,9 @@ nothing of sdbc_sim: point chase, where ROBOTS point robots chase a static targe
   the process and the simulator asks each controller for its action.
 
 A trial is a function of (seed, genomes): the evolution node gets the same results
-twice. Run as a script; Ctrl-C stops it.
+twice. Run as a script; Ctrl-C stops it. ``--fitness VALUE`` answers every trial
+with that fitness instead, as a simulator breaking the contract would (for the
+evolution side's check of what comes in).
 """
 
 from __future__ import annotations
@@ -30,6 +32,11 @@ CATCH_RADIUS = 0.5
 
 
 def main() -> int:
+    answered_fitness = (
+        float(sys.argv[sys.argv.index("--fitness") + 1])
+        if "--fitness" in sys.argv
+        else None
+    )
     import rclpy
     from geometry_msgs.msg import Point
     from rcl_interfaces.msg import SetParametersResult
@@ -98,6 +105,8 @@ def main() -> int:
                     break
             response.success = True
             response.fitness = float(max(0.0, 1.0 - distance.mean() / start))
+            if answered_fitness is not None:
+                response.fitness = answered_fitness
             response.characterisation = [
                 float(min(1.0, max(0.0, 0.5 + v / 40.0))) for v in robots.mean(axis=0)
             ]
