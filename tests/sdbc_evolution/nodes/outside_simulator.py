@@ -19,6 +19,8 @@ evolution side's check of what comes in).
 from __future__ import annotations
 
 import math
+import signal
+import subprocess
 import sys
 
 import numpy as np
@@ -164,6 +166,15 @@ def main() -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def stop(process: subprocess.Popen[bytes]) -> None:
+    """Stops a simulator started as a script: Ctrl-C, then a kill after 20 s."""
+    process.send_signal(signal.SIGINT)
+    try:
+        process.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        process.kill()
 
 
 if __name__ == "__main__":

@@ -5,7 +5,6 @@ is written: the check every evaluator's answers pass (docs/limits.md)."""
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -22,7 +21,7 @@ def test_an_outside_simulator_answering_fitness_20_stops_the_run(
     tmp_path: Path, ros_home: Path
 ) -> None:
     sys.path.insert(0, str(HERE))
-    from outside_simulator import GENOME_LENGTH, ROBOTS
+    from outside_simulator import GENOME_LENGTH, ROBOTS, stop
     from test_outside_simulator import EXPERIMENT, RUN_TIMEOUT
 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
@@ -52,11 +51,7 @@ def test_an_outside_simulator_answering_fitness_20_stops_the_run(
             argv, env=env, capture_output=True, text=True, timeout=RUN_TIMEOUT
         )
     finally:
-        simulator.send_signal(signal.SIGINT)
-        try:
-            simulator.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            simulator.kill()
+        stop(simulator)
     assert done.returncode == 1, done.stderr
     failed = [line for line in done.stderr.splitlines() if "run failed" in line]
     assert len(failed) == 1, done.stderr
