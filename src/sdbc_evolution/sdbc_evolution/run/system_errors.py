@@ -60,11 +60,9 @@ def describe_failure(error: BaseException, prog: str = "sdbc-evolve") -> str:
     the system (:func:`describe_system_error`) or of a run's input (a
     ``ValueError``: configuration, checkpoint, values out of range), the
     traceback for anything else (a bug, whose traceback is what helps)."""
-    from sdbc_evolution.run.experiment import ExperimentError
-
     if isinstance(error, (OSError, MemoryError)):
         return describe_system_error(error, prog)
-    if isinstance(error, (ValueError, ExperimentError)):
+    if isinstance(error, ValueError):
         return f"{type(error).__name__}: {error}"
     return "".join(traceback.format_exception(error)).rstrip()
 

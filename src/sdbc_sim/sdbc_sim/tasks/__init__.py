@@ -223,7 +223,7 @@ def task_settings(task_class: type[Task], overrides: Mapping[str, Any]) -> Any:
             settings' names: prefix them with where they came from), or a
             ``max_steps`` beyond :data:`sdbc_sim.limits.MAX_STEPS`.
     """
-    made = load(task_class.config_class, overrides)
+    made: Any = load(task_class.config_class, overrides)
     max_steps = getattr(made, "max_steps", None)
     if isinstance(max_steps, int) and max_steps > MAX_STEPS:
         raise SettingsError.of(
