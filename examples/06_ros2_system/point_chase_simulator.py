@@ -13,11 +13,15 @@ chase a static target.
 
 A trial is a function of (seed, genomes): the evolution node gets the same results
 twice. Run as a script; Ctrl-C stops it (``evolve.py`` starts and stops it).
+``--fitness VALUE`` answers every trial with that fitness instead, as a simulator
+breaking the contract would (for the evolution side's check of what comes in).
 """
 
 from __future__ import annotations
 
 import math
+import signal
+import subprocess
 import sys
 
 import numpy as np
@@ -31,6 +35,11 @@ CATCH_RADIUS = 0.5
 
 
 def main() -> int:
+    answered_fitness = (
+        float(sys.argv[sys.argv.index("--fitness") + 1])
+        if "--fitness" in sys.argv
+        else None
+    )
     import rclpy
     from geometry_msgs.msg import Point
     from rcl_interfaces.msg import SetParametersResult
@@ -99,6 +108,8 @@ def main() -> int:
                     break
             response.success = True
             response.fitness = float(max(0.0, 1.0 - distance.mean() / start))
+            if answered_fitness is not None:
+                response.fitness = answered_fitness
             response.characterisation = [
                 float(min(1.0, max(0.0, 0.5 + v / 40.0))) for v in robots.mean(axis=0)
             ]
@@ -156,6 +167,15 @@ def main() -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def stop(process: subprocess.Popen[bytes]) -> None:
+    """Stops a simulator started as a script: Ctrl-C, then a kill after 20 s."""
+    process.send_signal(signal.SIGINT)
+    try:
+        process.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        process.kill()
 
 
 if __name__ == "__main__":

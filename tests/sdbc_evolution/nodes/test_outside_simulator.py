@@ -6,7 +6,6 @@ learns the task from its messages, and the same run gives the same result twice.
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -33,7 +32,7 @@ RUN_TIMEOUT = 600.0
 
 def evolve_through_the_outside_simulator(tmp_path: Path, name: str) -> Path:
     sys.path.insert(0, str(HERE))
-    from point_chase_simulator import GENOME_LENGTH, ROBOTS
+    from point_chase_simulator import GENOME_LENGTH, ROBOTS, stop
 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     experiment = tmp_path / "experiment.yaml"
@@ -74,11 +73,7 @@ def evolve_through_the_outside_simulator(tmp_path: Path, name: str) -> Path:
             timeout=RUN_TIMEOUT,
         )
     finally:
-        simulator.send_signal(signal.SIGINT)
-        try:
-            simulator.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            simulator.kill()
+        stop(simulator)
         log.close()
     assert done.returncode == 0, (
         done.stderr + (tmp_path / f"{name}-simulator.log").read_text()

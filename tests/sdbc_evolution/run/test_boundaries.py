@@ -154,6 +154,8 @@ def test_a_novelty_k_no_generation_can_reach_is_refused_and_a_large_one_noted(
     assert "novelty.k=500 is more than the 9 other individuals" in note
     assert "until the archive holds 491 entries" in note
     assert config_from_dict({"ga": {"population_size": 16}}).notes() == []
+    fit = {"ga": {"population_size": 10}, "novelty": {"k": 500}, "treatment": "fit"}
+    assert config_from_dict(fit).notes() == []  # Fit computes no novelty
 
 
 def test_workers_are_bounded_and_counted_in_the_memory_check(

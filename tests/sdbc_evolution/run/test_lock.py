@@ -158,8 +158,8 @@ def test_two_resumes_at_once_on_one_run_one_is_refused(tmp_path: Path) -> None:
         )
     finally:
         first.send_signal(signal.SIGINT)
-        first.communicate(timeout=300)
-    assert first.returncode == 130
+        _, first_err = first.communicate(timeout=300)
+    assert first.returncode == 130, first_err
     done = read_generations(out)["generation"].tolist()
     assert done == list(range(len(done)))  # every generation once, in order
     # and the run goes on from where the first stopped

@@ -133,8 +133,8 @@ class ExperimentConfig:
         """What the run does differently from what its settings may suggest, one
         line each, for the command line to say before the run starts."""
         others = self.ga.population_size - 1
-        if self.novelty.k <= others:
-            return []
+        if self.treatment.characterisation is None or self.novelty.k <= others:
+            return []  # no novelty (Fit), or k neighbours from the start
         return [
             f"novelty.k={self.novelty.k} is more than the {others} other "
             "individuals of a generation: novelty averages over all of them and "

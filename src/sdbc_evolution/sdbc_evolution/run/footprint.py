@@ -124,6 +124,6 @@ def check_footprint(config: ExperimentConfig, info: TaskInfo, workers: int = 1) 
         f"{config.evaluation.trials}"
         + (f" with {processes} worker processes" if processes else "")
         + f" needs about {need / GIB:.1f} GiB of memory at once, only "
-        f"{have / GIB:.1f} GiB available: choose a smaller population, fewer "
-        "trials or fewer workers"
+        f"{have / GIB:.1f} GiB available: choose a smaller population"
+        + (", fewer trials or fewer workers" if processes else " or fewer trials")
     )
