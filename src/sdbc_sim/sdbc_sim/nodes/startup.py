@@ -16,6 +16,7 @@ what the program's ``serve`` returns.
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 from collections.abc import Callable, Iterable, Sequence
@@ -198,6 +199,12 @@ def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) ->
         if stop is not None:
             stop.destroy()
         rclpy.try_shutdown()
+        # What the nodes left in reference cycles (subscriptions holding their
+        # callbacks, which hold the node) goes now, while rclpy can still free it;
+        # freed at interpreter exit instead, a DDS entity's thread is destroyed
+        # running and the process aborts ("terminate called without an active
+        # exception", the recorder after SIGINT).
+        gc.collect()
 
 
 def spin_until_stopped(startup: Startup, nodes: Sequence[Node]) -> int:
