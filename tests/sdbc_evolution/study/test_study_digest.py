@@ -34,7 +34,14 @@ from study_helpers import tiny_preset
 
 REPOSITORY = Path(__file__).resolve().parents[3]
 STUDIES = REPOSITORY / "docs" / "study"
-COMMITTED = ("local", "local-v1", "pp_pop200", "local_new_tasks", "local_kinematic")
+COMMITTED = (
+    "local",
+    "local-v1",
+    "pp_pop200",
+    "local_new_tasks",
+    "local_kinematic",
+    "pp_pop50_control",
+)
 """The committed studies: the second local study (the engine's defaults since
 2026-12-01), the first, the population-200 test (its report has the preset's
 predictions) and the study of the two tasks beyond the paper (no paper column)."""
