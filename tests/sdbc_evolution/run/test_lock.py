@@ -116,7 +116,21 @@ def evolve(out: Path, *args: str) -> subprocess.Popen[str]:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # A resume that hangs can then be made to say where (stopped()).
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"},
     )
+
+
+def stopped(process: subprocess.Popen[str], timeout: float) -> str:
+    """``process``'s stderr once it ends; if it does not within ``timeout``
+    seconds, its threads' Python stacks (SIGABRT through faulthandler) in the
+    failure, so that an intermittent hang says where it was."""
+    try:
+        return process.communicate(timeout=timeout)[1]
+    except subprocess.TimeoutExpired:
+        process.send_signal(signal.SIGABRT)
+        err = process.communicate(timeout=60)[1]
+        raise AssertionError(f"pid {process.pid} did not end: {err[-8000:]}") from None
 
 
 def test_two_resumes_at_once_on_one_run_one_is_refused(tmp_path: Path) -> None:
@@ -149,7 +163,7 @@ def test_two_resumes_at_once_on_one_run_one_is_refused(tmp_path: Path) -> None:
             "the first resume's generations",
         )
         second = evolve(out, "--generations", "100000")
-        _, err = second.communicate(timeout=300)
+        err = stopped(second, 300)
         assert second.returncode == 2
         assert err.strip() == (
             f"sdbc-evolve: error: {out} is being written by another process "
@@ -158,7 +172,7 @@ def test_two_resumes_at_once_on_one_run_one_is_refused(tmp_path: Path) -> None:
         )
     finally:
         first.send_signal(signal.SIGINT)
-        _, first_err = first.communicate(timeout=300)
+        first_err = stopped(first, 300)
     assert first.returncode == 130, first_err
     done = read_generations(out)["generation"].tolist()
     assert done == list(range(len(done)))  # every generation once, in order
