@@ -183,28 +183,40 @@ def relevance_table(
     ]
     if not measured:
         return None
-    names = task.sdbc_names
     information = np.stack([i for i, _, _ in measured])  # (R, D)
     chance = np.stack([c for _, c, _ in measured]).mean(axis=0)
-    mean = information.mean(axis=0)
+    measure = weight_measure(measured[0][2]) or "mi"
+    return _ranked(task, information, chance, treatment, measure)
+
+
+def _ranked(
+    task: TaskDigest,
+    per_run: np.ndarray,
+    chance: np.ndarray,
+    treatment: str,
+    measure: str,
+) -> RelevanceTable:
+    """The table of ``per_run`` (R, D) relevance: mean and SD over the runs,
+    ranked by the mean, with each dimension's ``chance`` level (D,)."""
+    mean = per_run.mean(axis=0)
     sd = (
-        information.std(axis=0, ddof=1)
-        if len(measured) > 1
+        per_run.std(axis=0, ddof=1)
+        if per_run.shape[0] > 1
         else np.full(mean.shape, np.nan)
     )
     order = np.argsort(-mean, kind="stable")
     matched = task_specific_dimensions(task.task)
-    ordered = tuple(names[i] for i in order)
+    ordered = tuple(task.sdbc_names[i] for i in order)
     return RelevanceTable(
         task=task.task,
         names=ordered,
         mean=mean[order],
         sd=sd[order],
-        runs=len(measured),
+        runs=per_run.shape[0],
         in_task_specific=np.array([n in matched for n in ordered]),
         chance=chance[order],
         treatment=treatment,
-        measure=weight_measure(measured[0][2]) or "mi",
+        measure=measure,
     )
 
 
@@ -230,27 +242,10 @@ def above_chance_table(
         for r in task.of(treatment)
         if r.information is not None and r.chance is not None
     ]
-    above = np.stack(measured)
-    mean = above.mean(axis=0)
-    sd = above.std(axis=0, ddof=1) if len(measured) > 1 else np.full(mean.shape, np.nan)
     chance = np.stack(
         [r.chance for r in task.of(treatment) if r.chance is not None]
     ).mean(axis=0)
-    order = np.argsort(-mean, kind="stable")
-    names = task.sdbc_names
-    matched = task_specific_dimensions(task.task)
-    ordered = tuple(names[i] for i in order)
-    return RelevanceTable(
-        task=task.task,
-        names=ordered,
-        mean=mean[order],
-        sd=sd[order],
-        runs=len(measured),
-        in_task_specific=np.array([n in matched for n in ordered]),
-        chance=chance[order],
-        treatment=treatment,
-        measure=ABOVE_CHANCE,
-    )
+    return _ranked(task, np.stack(measured), chance, treatment, ABOVE_CHANCE)
 
 
 def chance_pass_rate(dimensions: int, marked: int, top: int, at_least: int) -> float:
