@@ -20,8 +20,9 @@ The checks, in order (:data:`CHECKS`):
   entity has finite attributes and geometry and a positive radius, every group's
   size of an active trial lies in [min_size, max_size], and static groups do not
   move;
-- ``ranges``: fitness and every task-specific characterisation value lie in
-  [0, 1], and the characterisation has one value per name;
+- ``ranges``: fitness lies in the task's ``fitness_range`` ([0, 1] unless it
+  declares another), every task-specific characterisation value in [0, 1], and
+  the characterisation has one value per name;
 - ``batch``: a trial gives the same fitness, characterisation, length and SDBC
   vector to the bit alone and within a batch of other genomes and seeds;
 - ``process``: and in a fresh Python process;
@@ -295,8 +296,12 @@ def check_ranges(subject: Subject) -> str:
             f"the characterisation has {c.shape[-1]} values, "
             f"characterisation_names {task.characterisation_size}"
         )
-    for label, values in (("fitness", result.fitness), ("characterisation", c)):
-        bad = ~(np.isfinite(values) & (values >= 0.0) & (values <= 1.0))
+    ranges = (
+        ("fitness", result.fitness, task.fitness_range),
+        ("characterisation", c, (0.0, 1.0)),
+    )
+    for label, values, (low, high) in ranges:
+        bad = ~(np.isfinite(values) & (values >= low) & (values <= high))
         if bad.any():
             where = tuple(int(i) for i in np.argwhere(bad)[0])
             value = float(values[where])
@@ -305,7 +310,8 @@ def check_ranges(subject: Subject) -> str:
                 if label == "characterisation"
                 else ""
             )
-            _fail(f"{label}{dimension} {value!r} outside [0, 1] at {where}")
+            bounds = f"[{low:g}, {high:g}]"
+            _fail(f"{label}{dimension} {value!r} outside {bounds} at {where}")
     lengths = result.length
     if lengths.min() < 1 or lengths.max() > task.max_steps:
         _fail(f"trial lengths {lengths.min()}-{lengths.max()} outside [1, max_steps]")

@@ -54,7 +54,8 @@ Then each step of a batch runs, in this order:
    it away, and the overlap projection moves only the other body;
 6. if anyone observes: ``task_state(trials, bodies)`` -> one
    :class:`~sdbc_sim.task_state.GroupState` per group;
-7. for the trials that ended: ``results(trials, length)`` -> (fitness (B,),
+7. for the trials that ended: ``results(trials, length)`` -> (fitness (B,), each
+   in the class's ``fitness_range``, [0, 1] unless it declares another;
    characterisation (B, C), each value in [0, 1]). Their values then freeze.
 
 ``reset(rngs)`` draws the initial conditions, each trial from its own
@@ -241,6 +242,10 @@ class Task(ABC, Generic[TrialsT]):
     """Its settings class, made with :func:`sdbc_sim.settings.settings`."""
     default_generations: ClassVar[int]
     """Generations of a run when the configuration sets none (required)."""
+    fitness_range: ClassVar[tuple[float, float]] = (0.0, 1.0)
+    """Where every trial's fitness lies (predator-prey's reaches 2: a capture
+    scores 2 - t/tau); evaluations with a fitness outside it are refused
+    (``sdbc_evolution.run.evaluators.check_values``)."""
     sdbc_counterparts: ClassVar[Mapping[str, tuple[str, ...]]] = {}
     """Optional: for a dimension of the task-specific characterisation (a name in
     :attr:`characterisation_names`), the SDBC dimensions that measure the same

@@ -13,11 +13,14 @@ from sdbc_evolution.characterise.evaluation import Evaluation
 from sdbc_evolution.graph.live_evaluator import LiveEvaluator
 from sdbc_evolution.run.cli import main
 from sdbc_evolution.run.evaluators import (
+    FITNESS_RANGE,
     DaskEvaluator,
     Evaluator,
     LocalEvaluator,
+    TaskSpec,
     ValuesOutOfRange,
     check_values,
+    evaluate_chunk,
 )
 
 HERE = Path(__file__).resolve().parent
@@ -49,6 +52,28 @@ def test_values_in_the_contract_pass() -> None:
 def test_values_outside_the_contract_are_refused(values, message) -> None:
     with pytest.raises(ValuesOutOfRange, match=message):
         check_values(evaluation(**values), "t")
+
+
+def test_each_task_is_checked_against_its_own_fitness_range() -> None:
+    # Predator-prey scores a capture 2 - t/tau; a range of [0, 1] for every task
+    # stopped the first kinematic study at its first capture.
+    assert TaskSpec("predator_prey").fitness_range == (0.0, 2.0)
+    assert TaskSpec("gate_escape").fitness_range == FITNESS_RANGE
+    assert TaskSpec("an_outside_simulators_task").fitness_range == FITNESS_RANGE
+    check_values(evaluation(fitness=1.9), "predator_prey", (0.0, 2.0))
+    with pytest.raises(ValuesOutOfRange, match=r"trial fitness 2.5 .* in \[0, 2\]"):
+        check_values(evaluation(fitness=2.5), "predator_prey", (0.0, 2.0))
+
+
+def test_a_predator_prey_capture_passes_the_value_check() -> None:
+    # A genome of the study that stopped, seed 1: its predators catch the prey.
+    spec = TaskSpec("predator_prey", physics="kinematic")
+    genome = np.load(HERE / "predator_prey_capture.npy")
+    result = evaluate_chunk(spec, genome, np.ones((1, 1), dtype=np.int64))
+    assert result.trial_fitness[0, 0] > 1.0
+    check_values(result, spec.name, spec.fitness_range)
+    with pytest.raises(ValuesOutOfRange):
+        check_values(result, spec.name)
 
 
 class OutsideAnswers(ToyEvaluator):

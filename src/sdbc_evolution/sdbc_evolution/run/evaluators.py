@@ -38,6 +38,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from concurrent.futures import CancelledError, ProcessPoolExecutor
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
@@ -86,6 +87,19 @@ class TaskSpec:
     fitness_mean: str = "harmonic"
     physics: PhysicsModel = "rigid"
     characterisations: tuple[CharacterisationSpec, ...] = ()
+
+    @cached_property
+    def fitness_range(self) -> tuple[float, float]:
+        """Where the task's trial fitness lies: its class's ``fitness_range``, or
+        :data:`FITNESS_RANGE` for a name no registered task has (a task of an
+        outside simulator's)."""
+        from sdbc_sim.tasks import UnknownTask, resolve_task
+
+        try:
+            low, high = resolve_task(self.name).fitness_range
+        except UnknownTask:
+            return FITNESS_RANGE
+        return (float(low), float(high))
 
     def all_characterisations(self) -> tuple[CharacterisationSpec, ...]:
         """Every characterisation an evaluation carries, each once, by key."""
@@ -216,7 +230,7 @@ def probe_task(spec: TaskSpec, info: TaskInfo) -> None:
     genome = np.zeros((1, info.genome_length))
     try:
         evaluation = evaluate_chunk(spec, genome, np.zeros((1, 1), dtype=np.int64))
-        check_values(evaluation, spec.name)
+        check_values(evaluation, spec.name, spec.fitness_range)
     except ValuesOutOfRange as error:
         raise TaskFailed(f"a first trial: {error}") from None
     except (ValueError, TypeError, IndexError, KeyError) as error:
@@ -248,9 +262,9 @@ def _check_batch(
 
 
 FITNESS_RANGE = (0.0, 1.0)
-"""Where the contract of a task (``sdbc_sim.task``) and of an outside simulator
-(docs/ros2.md, "Evolution through another simulator: the contract") puts every
-trial's fitness."""
+"""Where the contract of an outside simulator (docs/ros2.md, "Evolution through
+another simulator: the contract") puts every trial's fitness, and a task's
+(``sdbc_sim.task.Task.fitness_range``) unless it declares another."""
 CHARACTERISATION_RANGE = (0.0, 1.0)
 """Where the contract puts every value of the task-specific characterisation."""
 
@@ -261,8 +275,13 @@ class ValuesOutOfRange(ValueError):
     intact. The message names the value, the genome and the trial."""
 
 
-def check_values(evaluation: Evaluation, task: str) -> None:
-    """Refuses an evaluation with a trial fitness outside :data:`FITNESS_RANGE`, a
+def check_values(
+    evaluation: Evaluation,
+    task: str,
+    fitness_range: tuple[float, float] = FITNESS_RANGE,
+) -> None:
+    """Refuses an evaluation with a trial fitness outside ``fitness_range`` (the
+    task's, :attr:`TaskSpec.fitness_range`), a
     task-specific characterisation value outside :data:`CHARACTERISATION_RANGE`,
     or a NaN or infinite value in any characterisation.
 
@@ -277,7 +296,7 @@ def check_values(evaluation: Evaluation, task: str) -> None:
         ValuesOutOfRange: Naming the first bad value, where it is, and the task.
     """
     checks: list[tuple[str, np.ndarray, tuple[float, float] | None]] = [
-        ("trial fitness", evaluation.trial_fitness, FITNESS_RANGE)
+        ("trial fitness", evaluation.trial_fitness, fitness_range)
     ]
     for key, values in evaluation.behaviours.items():
         bounds = CHARACTERISATION_RANGE if key == TASK else None
@@ -337,7 +356,7 @@ class Evaluator(ABC):
         genomes, seeds = _check_batch(genomes, seeds)
         bounds = chunk_bounds(genomes.shape[0], self.workers)
         evaluation = Evaluation.concatenate(self._run(genomes, seeds, bounds))
-        check_values(evaluation, self.spec.name)
+        check_values(evaluation, self.spec.name, self.spec.fitness_range)
         return evaluation
 
     @abstractmethod

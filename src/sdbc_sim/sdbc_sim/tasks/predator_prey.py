@@ -202,6 +202,7 @@ class PredatorPrey(Task[PredatorPreyTrials]):
     config_class = PredatorPreyConfig
     default_generations = 750
     """Generations of the paper's runs."""
+    fitness_range = (0.0, 2.0)
     sdbc_counterparts = {
         "captured": ("Prey group size (F)",),
         "trial length / tau": ("Simulation length",),
