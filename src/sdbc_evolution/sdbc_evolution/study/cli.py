@@ -30,6 +30,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from sdbc_sim.limits import excerpt
 
@@ -48,6 +49,9 @@ from sdbc_evolution.study.presets import (
     StudyPreset,
     load_preset,
 )
+
+if TYPE_CHECKING:
+    from sdbc_evolution.study.findings import AnalysisSettings
 
 RESULTS_ROOT = Path("results")
 """Where studies go when ``--out`` is not given: ``results/study-<preset>``."""
@@ -131,6 +135,22 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         help="only this task's runs of the study directory (repeatable): a task "
         "finished while others still run, as a digest part of its own",
+    )
+    analyse.add_argument(
+        "--som-seeds",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also train each task's map again with N seeds (0..N-1) on each grid "
+        "of --som-grids and keep every run's exploration numbers on them in the "
+        "digest: the sensitivity of the region shares to the map (run directories "
+        "only; about 10 s of CPU per map and task; default 0: not measured)",
+    )
+    analyse.add_argument(
+        "--som-grids",
+        metavar="RxC,...",
+        help="the grids of --som-seeds (default: the map's scaled by 0.5, 0.75 "
+        "and 1, so 10x10,15x15,20x20)",
     )
     compare = sub.add_parser(
         "compare",
@@ -243,12 +263,49 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
     return 0, out
 
 
+def parse_grids(text: str) -> tuple[tuple[int, int], ...]:
+    """``"10x10,15x15"`` -> ((10, 10), (15, 15)).
+
+    Raises:
+        ValueError: Not such a list, or a grid under 2 x 2.
+    """
+    grids = []
+    for word in text.split(","):
+        parts = word.strip().lower().split("x")
+        if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+            raise ValueError(
+                f"--som-grids: ROWSxCOLUMNS separated by commas, got {excerpt(text)}"
+            )
+        rows, columns = (int(p) for p in parts)
+        if min(rows, columns) < 2:
+            raise ValueError(f"--som-grids: {word.strip()} is under 2 x 2")
+        grids.append((rows, columns))
+    return tuple(grids)
+
+
+def _analysis_settings(args: argparse.Namespace) -> AnalysisSettings:
+    from sdbc_evolution.study.findings import AnalysisSettings
+
+    if args.som_seeds < 0:
+        raise ValueError(f"--som-seeds: at least 0, got {args.som_seeds}")
+    if args.som_grids is not None and args.som_seeds == 0:
+        raise ValueError("--som-grids is the grids of --som-seeds: give that too")
+    if args.som_seeds and args.study is None:
+        raise ValueError(
+            "--som-seeds trains new maps on the runs' SDBC vectors, which a digest "
+            "does not keep: give the study directory"
+        )
+    grids = parse_grids(args.som_grids) if args.som_grids is not None else None
+    return AnalysisSettings(sensitivity_seeds=args.som_seeds, sensitivity_grids=grids)
+
+
 def _analyse(
     study: Path | None,
     out: Path | None,
     argv: list[str],
     digests: list[Path] | None = None,
     tasks: list[str] | None = None,
+    settings: AnalysisSettings | None = None,
 ) -> int:
     from sdbc_evolution.study.analysis import (
         REPORT_FILE,
@@ -269,11 +326,13 @@ def _analyse(
         if tasks and study is None:
             return _error("--task chooses runs of a study directory: give one")
         if study is not None and not digests:
-            analysis = analyse(study, out, command=command, tasks=tasks)
+            analysis = analyse(study, out, settings, command=command, tasks=tasks)
         elif study is None and len(digests) == 1:
-            analysis = analyse_digest_dir(digests[0], out, command=command)
+            analysis = analyse_digest_dir(digests[0], out, settings, command=command)
         else:
-            analysis = analyse_parts(study, digests, out, command=command, tasks=tasks)
+            analysis = analyse_parts(
+                study, digests, out, settings, command=command, tasks=tasks
+            )
     except (FileNotFoundError, DigestError) as error:
         return _error(str(error))
     for problem in analysis.problems:
@@ -343,7 +402,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace, argv: list[str]) -> int:
     if args.command == "analyse":
-        return _analyse(args.study, args.out, argv, args.from_digest, args.task)
+        try:
+            settings = _analysis_settings(args)
+        except ValueError as error:
+            return _error(str(error))
+        return _analyse(
+            args.study, args.out, argv, args.from_digest, args.task, settings
+        )
     if args.command == "measure":
         return _measure(args)
     if args.command == "compare":
