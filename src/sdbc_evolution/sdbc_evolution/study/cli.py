@@ -12,6 +12,8 @@ Examples::
     sdbc-study analyse results/pp --from-digest docs/study/v2/digest --out docs/study/v2
     sdbc-study measure --preset local             # what the study would cost here
     sdbc-study compare docs/study/local-v1 docs/study/local --reasons why.yaml
+    sdbc-study verdicts docs/study/local docs/study/local_kinematic \
+        --causes docs/study/disagreement-causes.yaml     # claims in several studies
 
 ``run`` is resumable: run it again with the same ``--preset`` and ``--out`` and it
 skips finished runs and resumes interrupted ones. Also ``python -m
@@ -57,7 +59,7 @@ RESULTS_ROOT = Path("results")
 """Where studies go when ``--out`` is not given: ``results/study-<preset>``."""
 BUSY_EXIT = 3
 """Exit status of a session that left runs to another process's writer."""
-COMMANDS = ("run", "analyse", "all", "measure", "compare")
+COMMANDS = ("run", "analyse", "all", "measure", "compare", "verdicts")
 """Subcommands; ``all`` (run, then analyse) when none is given."""
 
 
@@ -172,6 +174,32 @@ def build_parser() -> argparse.ArgumentParser:
         help="what the page calls the two studies (default: before,after)",
     )
     compare.add_argument(
+        "--out", type=Path, help="write the page here (default: print it)"
+    )
+    verdicts = sub.add_parser(
+        "verdicts",
+        help="the paper's claims in several analyses: each study's verdict, claim "
+        "by claim, and the declared cause of every disagreement",
+        description="Set the claims of several analysed studies side by side "
+        "(their tables/claims.csv, made by today's rules): verdict counts, each "
+        "claim's verdict in each study ('not run' for a task a study lacks), and "
+        "the cause of each disagreement from --causes, marked tested (by the "
+        "experiment named) or untested.",
+    )
+    verdicts.add_argument(
+        "analyses", type=Path, nargs="+", help="the analyses' folders, in order"
+    )
+    verdicts.add_argument(
+        "--names",
+        help="what the page calls the studies, separated by commas (default: the "
+        "folders' names)",
+    )
+    verdicts.add_argument(
+        "--causes",
+        type=Path,
+        help="YAML: a claim's statement -> {cause: why, tested: experiment}",
+    )
+    verdicts.add_argument(
         "--out", type=Path, help="write the page here (default: print it)"
     )
     measure = sub.add_parser(
@@ -341,6 +369,15 @@ def _analyse(
     return 0
 
 
+def _write_page(page: str, out: Path | None, what: str) -> None:
+    """``page`` into ``out`` (its path printed), or printed."""
+    if out is not None:
+        out.write_text(page)
+        print(f"{what}: {out.resolve()}")
+    else:
+        print(page)
+
+
 def _compare(args: argparse.Namespace) -> int:
     from sdbc_evolution.study.compare import (
         CompareError,
@@ -360,14 +397,48 @@ def _compare(args: argparse.Namespace) -> int:
     except CompareError as error:
         return _error(str(error))
     page, found = comparison_page(before, after, reasons, (names[0], names[1]))
-    if args.out is not None:
-        args.out.write_text(page)
-        print(f"comparison: {args.out.resolve()}")
-    else:
-        print(page)
+    _write_page(page, args.out, "comparison")
     for change in found:
         if change.why is None:
             print(f"not explained: {change.after.statement}", file=sys.stderr)
+    return 0
+
+
+def _verdicts(args: argparse.Namespace) -> int:
+    from sdbc_evolution.study.compare import CompareError
+    from sdbc_evolution.study.verdicts import read_causes, read_study, verdicts_page
+
+    names = (
+        [n.strip() for n in args.names.split(",")]
+        if args.names is not None
+        else [a.resolve().name for a in args.analyses]
+    )
+    if len(names) != len(args.analyses) or not all(names):
+        return _error(
+            f"--names: one name per analysis ({len(args.analyses)}), separated by "
+            f"commas, got {excerpt(args.names)}"
+        )
+    try:
+        studies = [read_study(a, n) for a, n in zip(args.analyses, names, strict=True)]
+        causes = read_causes(args.causes) if args.causes is not None else {}
+        page, found = verdicts_page(
+            studies,
+            causes,
+            "the causes file" if args.causes is None else f"`{args.causes}`",
+        )
+    except CompareError as error:
+        return _error(str(error))
+    _write_page(page, args.out, "verdicts")
+    for d in found:
+        if d.cause is None:
+            print(
+                f"no cause declared: {d.statement} ({', '.join(d.studies)})",
+                file=sys.stderr,
+            )
+    claimed = {r.statement for study in studies for r in study.rows}
+    for statement in causes:
+        if statement not in claimed:
+            print(f"cause of no claim here: {statement}", file=sys.stderr)
     return 0
 
 
@@ -413,6 +484,8 @@ def _main(args: argparse.Namespace, argv: list[str]) -> int:
         return _measure(args)
     if args.command == "compare":
         return _compare(args)
+    if args.command == "verdicts":
+        return _verdicts(args)
     with stoppable():
         status, out = _run(args, argv)
     if args.command == "run" or status != 0 or out is None:
