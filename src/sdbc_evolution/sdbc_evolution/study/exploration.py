@@ -108,14 +108,22 @@ class MapNumbers(Protocol):
     """Per-run numbers of a map, per treatment: what the exploration claims test."""
 
     @property
-    def task(self) -> str: ...
+    def task(self) -> str:
+        """Task name."""
+        ...
 
     @property
-    def treatments(self) -> tuple[str, ...]: ...
+    def treatments(self) -> tuple[str, ...]:
+        """Treatments, the order of ``k``."""
+        ...
 
-    def uniformity(self, k: int) -> np.ndarray: ...
+    def uniformity(self, k: int) -> np.ndarray:
+        """(R,) normalised entropy of each run of treatment ``k``."""
+        ...
 
-    def region_share(self, k: int) -> np.ndarray: ...
+    def region_share(self, k: int) -> np.ndarray:
+        """(R,) share of each run of treatment ``k`` in the high-fitness region."""
+        ...
 
 
 @dataclass(frozen=True)

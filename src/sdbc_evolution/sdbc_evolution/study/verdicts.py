@@ -247,7 +247,7 @@ def verdicts_page(
     lines = [
         f"# The paper's claims in {len(studies)} studies, under the same rules",
         "",
-        "Each study's verdicts as its report gives them (`tables/claims.csv`, "
+        "Each study's verdicts as its report gives them (its tables/claims.csv, "
         "made by today's rules: Holm within each task's family, 'no difference' "
         "and 'not below' by the margin on A's interval); a test counted once.",
         "",
