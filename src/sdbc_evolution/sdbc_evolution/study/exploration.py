@@ -438,7 +438,7 @@ def exploration_sensitivity(
     ``settings``' (the map of ``settings``' own seed and grid is the one
     :func:`exploration_maps` makes). Two passes over the runs' SDBC vectors
     whatever the number of maps; every individual's unit on every map is held
-    at once (2 bytes each)."""
+    at once (2 bytes each, up to 32768 units)."""
     if not seeds or not grids:
         raise ValueError("a sensitivity analysis needs at least one seed and grid")
     treatments = tuple(study.treatments(task))
@@ -464,6 +464,7 @@ def exploration_sensitivity(
         for rows, columns in grids
     ]
     units: list[list[list[np.ndarray]]] = [[[] for _ in seeds] for _ in grids]
+    small = np.int16 if max(r * c for r, c in grids) <= 2**15 else np.int64
     fitness = []
     for i, run in enumerate(runs):
         for sdbc in run.sdbc_generations():
@@ -474,7 +475,7 @@ def exploration_sensitivity(
                     counts[g][s][i] += np.bincount(
                         found, minlength=counts[g][s].shape[1]
                     )
-                    units[g][s].append(found.astype(np.int16))
+                    units[g][s].append(found.astype(small))
         fitness.append(np.concatenate(run.fitness))
     pooled_fitness = np.concatenate(fitness)
     floor = deceptive_optimum(task)
