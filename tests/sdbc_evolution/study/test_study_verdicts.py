@@ -95,7 +95,10 @@ def test_each_claim_in_each_study_with_the_cause_of_its_disagreement(
     assert "On the tasks every study ran (predator-prey pursuit):" in page
     assert "| first | predator-prey pursuit | 3 | 0 | 2 | 1 |" in page
     assert f"| {GE} | agree, A = 0.80 [0.60, 1.00] | inconclusive, A = 0.50 " in page
-    assert f"| {NOT_RUN} |  |" in page  # the new study has no gate escape
+    # The new study has no gate escape; a declared cause shows where verdicts
+    # differ between studies, even with no disagreement.
+    assert f"| {NOT_RUN} | *untested*: not a disagreement anywhere |" in page
+    assert "differs between the studies that judged them: 4 " in page
     assert (
         f"| {PP} | **disagree**, A = 0.20 [0.00, 0.40] | inconclusive, "
         "A = 0.45 [0.25, 0.65] | **disagree**, A = 0.30 [0.10, 0.50] | "

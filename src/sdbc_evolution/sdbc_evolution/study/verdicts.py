@@ -215,6 +215,11 @@ def claim_order(studies: Sequence[StudyClaims]) -> list[tuple[str, str]]:
     return [(t, s) for t in order for s, task in seen.items() if task == t]
 
 
+def verdicts_of(studies: Sequence[StudyClaims], statement: str) -> set[Verdict]:
+    """The verdicts the studies that judged ``statement`` gave it."""
+    return {row.verdict for s in studies if (row := s.verdict(statement)) is not None}
+
+
 def _cell(study: StudyClaims, statement: str, task: str) -> str:
     row = study.verdict(statement)
     if row is None:
@@ -279,13 +284,17 @@ def verdicts_page(
         )
     tested = sum(d.cause is not None and d.cause.tested is not None for d in found)
     untested = sum(d.cause is not None and d.cause.tested is None for d in found)
+    order = claim_order(studies)
+    differing = [s for _, s in order if len(verdicts_of(studies, s)) > 1]
     lines += [
         f"Claims some study disagrees with: {len(found)}; their causes, declared "
         f"in {causes_name}: {tested} tested by an experiment, {untested} untested, "
-        f"{len(found) - tested - untested} not declared.",
+        f"{len(found) - tested - untested} not declared. Claims whose verdict "
+        f"differs between the studies that judged them: {len(differing)} (the "
+        "column gives a declared cause for these too where there is one; the "
+        "studies' comparison pages explain the changes between two of them).",
         "",
     ]
-    order = claim_order(studies)
     by_statement = {d.statement: d for d in found}
     for task in dict.fromkeys(t for t, _ in order):
         lines += [f"## {task_title(task)[0].upper()}{task_title(task)[1:]}", ""]
@@ -293,13 +302,13 @@ def verdicts_page(
         for t, statement in order:
             if t != task:
                 continue
-            disagreement = by_statement.get(statement)
+            declared = causes.get(statement)
             cause = (
-                ""
-                if disagreement is None
+                declared.text
+                if declared is not None
                 else "(no cause declared)"
-                if disagreement.cause is None
-                else disagreement.cause.text
+                if statement in by_statement
+                else ""
             )
             rows.append(
                 [_escape(statement)]
