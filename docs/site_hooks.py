@@ -22,6 +22,8 @@ STUDY = ROOT / "docs" / "study"
 STUDY_SECTION = "The study"
 STUDY_TITLES = {"report": "report", "comparison": "against the study before"}
 """Nav titles of a study folder's pages, after the folder's name."""
+STUDY_OVERVIEWS = {"verdicts.md": "Every study's verdicts"}
+"""Pages of docs/study/ itself beside the overview, and their nav titles."""
 ROOT_PAGES = {"index.md": "README.md", "contributing.md": "CONTRIBUTING.md"}
 """Pages made from files at the repository's root, which GitHub shows there."""
 ROOT_FILES = ("LICENSE", "CITATION.cff")
@@ -83,6 +85,11 @@ def study_pages() -> list[dict[str, str]]:
     """The study's overview, then every page of every study folder: a study
     committed with its report appears without an edit here."""
     pages = [{"Overview": "study/README.md"}]
+    pages += [
+        {title: f"study/{name}"}
+        for name, title in STUDY_OVERVIEWS.items()
+        if (STUDY / name).is_file()
+    ]
     for page in sorted(STUDY.glob("*/*.md")):
         title = f"{page.parent.name}: {STUDY_TITLES.get(page.stem, page.stem)}"
         pages.append({title: page.relative_to(STUDY.parent).as_posix()})

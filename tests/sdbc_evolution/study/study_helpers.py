@@ -7,9 +7,11 @@ from pathlib import Path
 
 import numpy as np
 from sdbc_evolution.run.results import GENERATIONS_FILE, TIME_COLUMNS
+from sdbc_evolution.study.compare import CLAIMS_TABLE, COLUMNS
 from sdbc_evolution.study.plan import study_plan
 from sdbc_evolution.study.presets import StudyPreset, preset_from_dict
 from sdbc_evolution.study.runner import Execution, run_study
+from sdbc_evolution.study.verdicts import RULE_COLUMNS
 
 TINY = {
     "name": "tiny",
@@ -64,3 +66,24 @@ def assert_same_study(preset: StudyPreset, a: Path, b: Path) -> None:
     """Every run of the two study directories has the same results."""
     for x, y in zip(study_plan(preset, a), study_plan(preset, b), strict=True):
         assert run_contents(x.path) == run_contents(y.path), x.name
+
+
+def write_claims(
+    folder: Path, rows: list[tuple[str, str, str, str]], rules: bool = False
+) -> Path:
+    """A claims table in ``folder``; rows: (task, statement, ours, verdict). With
+    ``rules``, the columns of today's rules too: A is ``ours`` where that is a
+    number (its interval +- 0.2), no test where it is empty."""
+    path = folder / CLAIMS_TABLE
+    path.parent.mkdir(parents=True)
+    header = list(COLUMNS[:-1]) + (list(RULE_COLUMNS) if rules else []) + ["verdict"]
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        for task, statement, ours, verdict in rows:
+            cells = ["quality", task, statement, "p < 0.05", ours, ""]
+            if rules:
+                a = [0.1, ours, float(ours) - 0.2, float(ours) + 0.2] if ours else []
+                cells = cells[:-1] + [0.05] + (a or ["", "", "", ""]) + ["champion"]
+            writer.writerow([*cells, verdict])
+    return folder

@@ -2,35 +2,21 @@
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import pytest
 from sdbc_evolution.study.cli import main
 from sdbc_evolution.study.compare import (
-    CLAIMS_TABLE,
-    COLUMNS,
     CompareError,
     comparison_page,
     read_claims,
     read_reasons,
 )
+from study_helpers import write_claims
 
 A = "NS-SD+ above Fit in resource sharing"
 B = "NS-TS above Fit in resource sharing"
 C = "NS-SD+ above Fit in gate escape"
-
-
-def write_claims(folder: Path, rows: list[tuple[str, str, str, str]]) -> Path:
-    """rows: (task, statement, ours, verdict)."""
-    path = folder / CLAIMS_TABLE
-    path.parent.mkdir(parents=True)
-    with open(path, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(COLUMNS)
-        for task, statement, ours, verdict in rows:
-            writer.writerow(["quality", task, statement, "p < 0.05", ours, "", verdict])
-    return folder
 
 
 @pytest.fixture

@@ -23,6 +23,13 @@ before, with the same tables and figures to the byte. It writes::
                                      treatment (its measure's units)
       tables/exploration_<task>.csv  per run: uniformity, coverage, high-fitness share
       tables/exploration_<task>.npz  per-run shares, mean shares, percentiles, region
+      tables/exploration_sensitivity_<task>.csv  per setting (other region sizes;
+                                     other SOM seeds and grids where the digest
+                                     holds them) and treatment: mean high-fitness
+                                     share and uniformity
+      tables/exploration_stability_<task>.csv   per setting kind and claim: the
+                                     verdict on the map, on how many settings it
+                                     is the same, and each verdict's count
       tables/cost.csv                measured rates per task
       tables/projection.csv          the paper preset's wall time on W workers
       tables/claims.csv              every claim: raw and Holm p, A and its
@@ -46,6 +53,7 @@ from sdbc_evolution.run.results import npz_bytes
 from sdbc_evolution.study.claims import (
     Claim,
     PredictionResult,
+    Verdict,
     exploration_claims,
     judge_predictions,
     quality_claims,
@@ -88,6 +96,7 @@ from sdbc_evolution.study.relevance import (
 )
 from sdbc_evolution.study.report import write_report
 from sdbc_evolution.study.rundirs import StudyData, load_study
+from sdbc_evolution.study.sensitivity import MAP, REGION, MapSensitivity, sensitivity
 
 FIGURES_DIR = "figures"
 TABLES_DIR = "tables"
@@ -260,6 +269,13 @@ def analyse_task(
         )
     )
 
+    spreads = [
+        found
+        for kind in (MAP, REGION)
+        if (found := sensitivity(maps, kind, settings.alpha)) is not None
+    ]
+    _write_sensitivity(tables, task, spreads)
+
     figure_paths = {
         "curves": plot_curves(curves, figures / f"curves_{task}.png"),
         "bests": plot_bests(task, bests, figures / f"bests_{task}.png"),
@@ -277,8 +293,65 @@ def analyse_task(
         relevance_above_chance=above,
         other_relevance=other_relevance,
         maps=maps,
+        sensitivity=spreads,
         cost=task_cost(digest),
         figures=figure_paths,
+    )
+
+
+def _write_sensitivity(tables: Path, task: str, spreads: list[MapSensitivity]) -> None:
+    _write_csv(
+        tables / f"exploration_sensitivity_{task}.csv",
+        [
+            "kind",
+            "seed",
+            "rows",
+            "columns",
+            "region_fraction",
+            "treatment",
+            "mean_high_fitness_share",
+            "mean_uniformity",
+        ],
+        [
+            [
+                found.kind,
+                setting.seed,
+                setting.rows,
+                setting.columns,
+                setting.fraction,
+                treatment,
+                found.shares[k, n],
+                found.uniformity[k, n],
+            ]
+            for found in spreads
+            for n, setting in enumerate(found.settings)
+            for k, treatment in enumerate(found.treatments)
+        ],
+    )
+    _write_csv(
+        tables / f"exploration_stability_{task}.csv",
+        [
+            "kind",
+            "claim",
+            "verdict_on_map",
+            "settings",
+            "same_verdict",
+            "agree",
+            "disagree",
+            "inconclusive",
+        ],
+        [
+            [
+                found.kind,
+                c.statement,
+                c.verdict.value,
+                len(c.verdicts),
+                c.same,
+                *(c.count(v) for v in Verdict),
+            ]
+            for found in spreads
+            for c in found.claims
+        ],
     )
 
 
@@ -309,6 +382,22 @@ def only_tasks(study: StudyData, tasks: Sequence[str] | None) -> StudyData:
     )
 
 
+def _reduce(
+    study: StudyData,
+    settings: AnalysisSettings,
+    study_dir: str | Path,
+    command: list[str] | None,
+) -> StudyDigest:
+    return reduce_study(
+        study,
+        settings.som,
+        str(study_dir),
+        command,
+        settings.seeds,
+        settings.sensitivity_grids,
+    )
+
+
 def analyse(
     study_dir: str | Path,
     out_dir: str | Path | None = None,
@@ -326,7 +415,7 @@ def analyse(
     settings = settings or AnalysisSettings()
     out = Path(out_dir) if out_dir is not None else Path(study_dir) / "report"
     study = only_tasks(load_study(study_dir), tasks)
-    digest = reduce_study(study, settings.som, str(study_dir), command)
+    digest = _reduce(study, settings, study_dir, command)
     write_digest(digest, out / DIGEST_DIR)
     return analyse_digest(digest, out, settings, command)
 
@@ -374,7 +463,7 @@ def analyse_parts(
     parts = [(str(d), read_digest(d)) for d in digest_dirs]
     if study_dir is not None:
         study = only_tasks(load_study(study_dir), tasks)
-        reduced = reduce_study(study, settings.som, str(study_dir), command)
+        reduced = _reduce(study, settings, study_dir, command)
         parts.insert(0, (str(study_dir), reduced))
     if out_dir is not None:
         out = Path(out_dir)

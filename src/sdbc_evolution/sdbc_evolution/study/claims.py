@@ -49,7 +49,7 @@ from enum import Enum
 import numpy as np
 
 from sdbc_evolution.ga.treatments import label
-from sdbc_evolution.study.exploration import ExplorationMaps
+from sdbc_evolution.study.exploration import MapNumbers
 from sdbc_evolution.study.paper import is_paper_task, task_title
 from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.quality import PairTest, holm, mann_whitney
@@ -393,14 +393,14 @@ def relevance_claims(
     return claims
 
 
-def _metric_test(maps: ExplorationMaps, metric: str, a: str, b: str) -> PairTest | None:
+def _metric_test(maps: MapNumbers, metric: str, a: str, b: str) -> PairTest | None:
     if a not in maps.treatments or b not in maps.treatments:
         return None
     values = {t: getattr(maps, metric)(k) for k, t in enumerate(maps.treatments)}
     return mann_whitney(maps.task, a, b, values[a], values[b])
 
 
-def exploration_claims(maps: ExplorationMaps, alpha: float = ALPHA) -> list[Claim]:
+def exploration_claims(maps: MapNumbers, alpha: float = ALPHA) -> list[Claim]:
     """The paper's reading of its exploration maps, tested on ``maps.task`` (none
     for a task the paper did not run); the tests are one family for Holm."""
     if not is_paper_task(maps.task):

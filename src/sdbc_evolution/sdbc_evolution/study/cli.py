@@ -12,6 +12,8 @@ Examples::
     sdbc-study analyse results/pp --from-digest docs/study/v2/digest --out docs/study/v2
     sdbc-study measure --preset local             # what the study would cost here
     sdbc-study compare docs/study/local-v1 docs/study/local --reasons why.yaml
+    sdbc-study verdicts docs/study/local docs/study/local_kinematic \
+        --causes docs/study/disagreement-causes.yaml     # claims in several studies
 
 ``run`` is resumable: run it again with the same ``--preset`` and ``--out`` and it
 skips finished runs and resumes interrupted ones. Also ``python -m
@@ -30,6 +32,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from sdbc_sim.limits import excerpt
 
@@ -49,11 +52,14 @@ from sdbc_evolution.study.presets import (
     load_preset,
 )
 
+if TYPE_CHECKING:
+    from sdbc_evolution.study.findings import AnalysisSettings
+
 RESULTS_ROOT = Path("results")
 """Where studies go when ``--out`` is not given: ``results/study-<preset>``."""
 BUSY_EXIT = 3
 """Exit status of a session that left runs to another process's writer."""
-COMMANDS = ("run", "analyse", "all", "measure", "compare")
+COMMANDS = ("run", "analyse", "all", "measure", "compare", "verdicts")
 """Subcommands; ``all`` (run, then analyse) when none is given."""
 
 
@@ -132,6 +138,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="only this task's runs of the study directory (repeatable): a task "
         "finished while others still run, as a digest part of its own",
     )
+    analyse.add_argument(
+        "--som-seeds",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also train each task's map again with N seeds (0..N-1) on each grid "
+        "of --som-grids and keep every run's exploration numbers on them in the "
+        "digest: the sensitivity of the region shares to the map (run directories "
+        "only; about 10 s of CPU per map and task; default 0: not measured)",
+    )
+    analyse.add_argument(
+        "--som-grids",
+        metavar="RxC,...",
+        help="the grids of --som-seeds (default: the map's scaled by 0.5, 0.75 "
+        "and 1, so 10x10,15x15,20x20)",
+    )
     compare = sub.add_parser(
         "compare",
         help="the paper's claims in two analyses: counts and changed verdicts",
@@ -152,6 +174,32 @@ def build_parser() -> argparse.ArgumentParser:
         help="what the page calls the two studies (default: before,after)",
     )
     compare.add_argument(
+        "--out", type=Path, help="write the page here (default: print it)"
+    )
+    verdicts = sub.add_parser(
+        "verdicts",
+        help="the paper's claims in several analyses: each study's verdict, claim "
+        "by claim, and the declared cause of every disagreement",
+        description="Set the claims of several analysed studies side by side "
+        "(their tables/claims.csv, made by today's rules): verdict counts, each "
+        "claim's verdict in each study ('not run' for a task a study lacks), and "
+        "the cause of each disagreement from --causes, marked tested (by the "
+        "experiment named) or untested.",
+    )
+    verdicts.add_argument(
+        "analyses", type=Path, nargs="+", help="the analyses' folders, in order"
+    )
+    verdicts.add_argument(
+        "--names",
+        help="what the page calls the studies, separated by commas (default: the "
+        "folders' names)",
+    )
+    verdicts.add_argument(
+        "--causes",
+        type=Path,
+        help="YAML: a claim's statement -> {cause: why, tested: experiment}",
+    )
+    verdicts.add_argument(
         "--out", type=Path, help="write the page here (default: print it)"
     )
     measure = sub.add_parser(
@@ -243,12 +291,49 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
     return 0, out
 
 
+def parse_grids(text: str) -> tuple[tuple[int, int], ...]:
+    """``"10x10,15x15"`` -> ((10, 10), (15, 15)).
+
+    Raises:
+        ValueError: Not such a list, or a grid under 2 x 2.
+    """
+    grids = []
+    for word in text.split(","):
+        parts = word.strip().lower().split("x")
+        if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+            raise ValueError(
+                f"--som-grids: ROWSxCOLUMNS separated by commas, got {excerpt(text)}"
+            )
+        rows, columns = (int(p) for p in parts)
+        if min(rows, columns) < 2:
+            raise ValueError(f"--som-grids: {word.strip()} is under 2 x 2")
+        grids.append((rows, columns))
+    return tuple(grids)
+
+
+def _analysis_settings(args: argparse.Namespace) -> AnalysisSettings:
+    from sdbc_evolution.study.findings import AnalysisSettings
+
+    if args.som_seeds < 0:
+        raise ValueError(f"--som-seeds: at least 0, got {args.som_seeds}")
+    if args.som_grids is not None and args.som_seeds == 0:
+        raise ValueError("--som-grids is the grids of --som-seeds: give that too")
+    if args.som_seeds and args.study is None:
+        raise ValueError(
+            "--som-seeds trains new maps on the runs' SDBC vectors, which a digest "
+            "does not keep: give the study directory"
+        )
+    grids = parse_grids(args.som_grids) if args.som_grids is not None else None
+    return AnalysisSettings(sensitivity_seeds=args.som_seeds, sensitivity_grids=grids)
+
+
 def _analyse(
     study: Path | None,
     out: Path | None,
     argv: list[str],
     digests: list[Path] | None = None,
     tasks: list[str] | None = None,
+    settings: AnalysisSettings | None = None,
 ) -> int:
     from sdbc_evolution.study.analysis import (
         REPORT_FILE,
@@ -269,17 +354,28 @@ def _analyse(
         if tasks and study is None:
             return _error("--task chooses runs of a study directory: give one")
         if study is not None and not digests:
-            analysis = analyse(study, out, command=command, tasks=tasks)
+            analysis = analyse(study, out, settings, command=command, tasks=tasks)
         elif study is None and len(digests) == 1:
-            analysis = analyse_digest_dir(digests[0], out, command=command)
+            analysis = analyse_digest_dir(digests[0], out, settings, command=command)
         else:
-            analysis = analyse_parts(study, digests, out, command=command, tasks=tasks)
+            analysis = analyse_parts(
+                study, digests, out, settings, command=command, tasks=tasks
+            )
     except (FileNotFoundError, DigestError) as error:
         return _error(str(error))
     for problem in analysis.problems:
         print(f"left out {problem.name}: {problem.reason}", file=sys.stderr)
     print(f"report: {(analysis.out / REPORT_FILE).resolve()}")
     return 0
+
+
+def _write_page(page: str, out: Path | None, what: str) -> None:
+    """``page`` into ``out`` (its path printed), or printed."""
+    if out is not None:
+        out.write_text(page)
+        print(f"{what}: {out.resolve()}")
+    else:
+        print(page)
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -301,14 +397,48 @@ def _compare(args: argparse.Namespace) -> int:
     except CompareError as error:
         return _error(str(error))
     page, found = comparison_page(before, after, reasons, (names[0], names[1]))
-    if args.out is not None:
-        args.out.write_text(page)
-        print(f"comparison: {args.out.resolve()}")
-    else:
-        print(page)
+    _write_page(page, args.out, "comparison")
     for change in found:
         if change.why is None:
             print(f"not explained: {change.after.statement}", file=sys.stderr)
+    return 0
+
+
+def _verdicts(args: argparse.Namespace) -> int:
+    from sdbc_evolution.study.compare import CompareError
+    from sdbc_evolution.study.verdicts import read_causes, read_study, verdicts_page
+
+    names = (
+        [n.strip() for n in args.names.split(",")]
+        if args.names is not None
+        else [a.resolve().name for a in args.analyses]
+    )
+    if len(names) != len(args.analyses) or not all(names):
+        return _error(
+            f"--names: one name per analysis ({len(args.analyses)}), separated by "
+            f"commas, got {excerpt(args.names)}"
+        )
+    try:
+        studies = [read_study(a, n) for a, n in zip(args.analyses, names, strict=True)]
+        causes = read_causes(args.causes) if args.causes is not None else {}
+        page, found = verdicts_page(
+            studies,
+            causes,
+            "the causes file" if args.causes is None else f"`{args.causes}`",
+        )
+    except CompareError as error:
+        return _error(str(error))
+    _write_page(page, args.out, "verdicts")
+    for d in found:
+        if d.cause is None:
+            print(
+                f"no cause declared: {d.statement} ({', '.join(d.studies)})",
+                file=sys.stderr,
+            )
+    claimed = {r.statement for study in studies for r in study.rows}
+    for statement in causes:
+        if statement not in claimed:
+            print(f"cause of no claim here: {statement}", file=sys.stderr)
     return 0
 
 
@@ -343,11 +473,19 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace, argv: list[str]) -> int:
     if args.command == "analyse":
-        return _analyse(args.study, args.out, argv, args.from_digest, args.task)
+        try:
+            settings = _analysis_settings(args)
+        except ValueError as error:
+            return _error(str(error))
+        return _analyse(
+            args.study, args.out, argv, args.from_digest, args.task, settings
+        )
     if args.command == "measure":
         return _measure(args)
     if args.command == "compare":
         return _compare(args)
+    if args.command == "verdicts":
+        return _verdicts(args)
     with stoppable():
         status, out = _run(args, argv)
     if args.command == "run" or status != 0 or out is None:

@@ -17,6 +17,7 @@ from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
@@ -87,6 +88,24 @@ def read_claims(analysis_dir: str | Path) -> list[ClaimRow]:
     return rows
 
 
+def read_mapping(path: Path, what: str) -> dict[Any, Any]:
+    """The YAML mapping in ``path`` ({} for an empty file), called ``what`` in
+    errors.
+
+    Raises:
+        CompareError: Unreadable, or not a mapping.
+    """
+    try:
+        data = read_yaml(path, what)
+    except YamlRefused as error:
+        raise CompareError(str(error)) from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise CompareError(f"{path}: must map claim statements to {what}")
+    return data
+
+
 def read_reasons(path: str | Path) -> dict[str, str]:
     """Explanations of changed verdicts: a YAML mapping from a claim's statement
     (as the report words it) to why its verdict changed.
@@ -95,15 +114,8 @@ def read_reasons(path: str | Path) -> dict[str, str]:
         CompareError: Not such a mapping.
     """
     path = Path(path)
-    try:
-        data = read_yaml(path, "explanations")
-    except YamlRefused as error:
-        raise CompareError(str(error)) from None
-    if data is None:
-        return {}
-    if not isinstance(data, dict) or not all(
-        isinstance(k, str) and isinstance(v, str) for k, v in data.items()
-    ):
+    data = read_mapping(path, "explanations")
+    if not all(isinstance(k, str) and isinstance(v, str) for k, v in data.items()):
         raise CompareError(f"{path}: must map claim statements to explanations")
     return {k: " ".join(v.split()) for k, v in data.items()}
 
@@ -121,18 +133,23 @@ def changes(
     ]
 
 
-def _counts(rows: Sequence[ClaimRow]) -> str:
-    # As the reports count (claims.totals): two claims on one test, which
-    # give the same evidence, with one verdict are one observation.
+def verdict_counts(rows: Sequence[ClaimRow]) -> tuple[Counter[Verdict], int]:
+    """Verdicts counted as the reports count them (:func:`.claims.totals`): two
+    claims on one test, which give the same evidence, with one verdict are one
+    observation; and how many observations there are."""
     unique = {(r.topic, r.task, r.ours, r.verdict) for r in rows}
-    counts = Counter(verdict for *_, verdict in unique)
+    return Counter(verdict for *_, verdict in unique), len(unique)
+
+
+def _counts(rows: Sequence[ClaimRow]) -> str:
+    counts, unique = verdict_counts(rows)
     return (
         f"{len(rows)} claims: {counts[Verdict.AGREE]} agree, "
         f"{counts[Verdict.DISAGREE]} disagree, "
         f"{counts[Verdict.INCONCLUSIVE]} inconclusive"
         + (
-            f" (a test counted once: {len(rows) - len(unique)} claims share one)"
-            if len(unique) < len(rows)
+            f" (a test counted once: {len(rows) - unique} claims share one)"
+            if unique < len(rows)
             else ""
         )
     )

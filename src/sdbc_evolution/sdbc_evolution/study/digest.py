@@ -13,7 +13,9 @@ analyse --from-digest``), byte for byte. Per run:
   SDBC dimension's relevance (weight - delta: for NS-SD+ its MI with fitness)
   averaged over the run's generations, and the MI's chance level from evenly
   spaced generations (:mod:`.relevance`);
-- its individuals per unit of the task's SOM (:mod:`.exploration`);
+- its individuals per unit of the task's SOM (:mod:`.exploration`), and where the
+  analysis asked for it, its uniformity and high-fitness share on maps of other
+  seeds and grids (a digest without them stays the bytes it was);
 - where the study re-evaluated champions (:mod:`.champions`), the champion's
   generation and re-evaluated fitness, the last generation's best re-evaluated,
   and the trials (a digest of a study without them holds none of these arrays, so
@@ -55,7 +57,7 @@ from sdbc_evolution.run.config import (
 )
 from sdbc_evolution.run.results import npz_bytes
 from sdbc_evolution.study.champions import ChampionSummary
-from sdbc_evolution.study.exploration import ExplorationMaps, SomSettings
+from sdbc_evolution.study.exploration import ExplorationMaps, Sensitivity, SomSettings
 from sdbc_evolution.study.predictions import Prediction
 from sdbc_evolution.study.rundirs import RunProblem
 
@@ -276,7 +278,58 @@ def task_arrays(digest: TaskDigest) -> dict[str, np.ndarray]:
     }
     if any(r.champions is not None for r in runs):
         arrays.update(_champion_arrays(runs))
+    if maps.sensitivity is not None:
+        arrays.update(_sensitivity_arrays(maps, [r.name for r in runs]))
     return arrays
+
+
+def _sensitivity_arrays(
+    maps: ExplorationMaps, order: list[str]
+) -> dict[str, np.ndarray]:
+    sensitivity = maps.sensitivity
+    assert sensitivity is not None
+    columns = {
+        "uniformity": sensitivity.uniformity,
+        "region_share": sensitivity.region_share,
+    }
+    arrays = {
+        "som_sensitivity_seeds": np.array(sensitivity.seeds, dtype=np.int64),
+        "som_sensitivity_grids": np.array(sensitivity.grids, dtype=np.int64).reshape(
+            -1, 2
+        ),
+    }
+    for key, per_treatment in columns.items():
+        by_name = {
+            name: values[:, :, i]
+            for names, values in zip(maps.run_names, per_treatment, strict=True)
+            for i, name in enumerate(names)
+        }
+        arrays[f"som_sensitivity_{key}"] = np.stack(
+            [by_name[name] for name in order], axis=-1
+        ).astype(np.float64)
+    return arrays
+
+
+def _read_sensitivity(npz: _Npz, r: int, groups: list[list[int]]) -> Sensitivity | None:
+    if "som_sensitivity_seeds" not in npz.arrays:
+        return None
+    seeds = npz.get("som_sensitivity_seeds", "i", (None,))
+    grids = npz.get("som_sensitivity_grids", "i", (None, 2))
+    if seeds.size == 0 or grids.shape[0] == 0 or (grids < 2).any():
+        raise _fail(
+            npz.file, "'som_sensitivity_*': no seed, no grid, or a grid under 2"
+        )
+    shape = (grids.shape[0], seeds.size, r)
+    values = {
+        key: npz.get(f"som_sensitivity_{key}", "f", shape)
+        for key in ("uniformity", "region_share")
+    }
+    return Sensitivity(
+        seeds=tuple(int(x) for x in seeds),
+        grids=tuple((int(a), int(b)) for a, b in grids),
+        uniformity=tuple(values["uniformity"][:, :, g] for g in groups),
+        region_share=tuple(values["region_share"][:, :, g] for g in groups),
+    )
 
 
 CHAMPION_ARRAYS = {
@@ -369,7 +422,11 @@ def write_digest(digest: StudyDigest, directory: str | Path) -> list[Path]:
                         run re-evaluated its champions, per run (R,):
                         champion_trials (0: not re-evaluated),
                         champion_generation, champion_fitness, champion_mean,
-                        last_fitness, last_mean
+                        last_fitness, last_mean; where the analysis measured
+                        the maps' sensitivity, som_sensitivity_seeds (S,),
+                        som_sensitivity_grids (G, 2) rows and columns,
+                        som_sensitivity_uniformity and
+                        som_sensitivity_region_share (G, S, R)
 
     Files of tasks not in the digest are removed, so the folder is the digest.
     """
@@ -552,6 +609,7 @@ def _read_task(file: Path, task: str, som: SomSettings) -> TaskDigest:
         pooled_percentile=pooled,
         sample_count=sample_count,
         quantisation_error=quantisation_error,
+        sensitivity=_read_sensitivity(npz, r, by_treatment),
     )
     if (counts.sum(axis=1) < 1).any():
         raise _fail(file, "'som_counts': a run with no individual mapped")

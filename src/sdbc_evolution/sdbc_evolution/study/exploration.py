@@ -30,14 +30,20 @@ Two per-run numbers put the paper's reading of the maps to a test:
   optimum 0.1446, so the region marked the teams that never charge and Fit had
   the largest share).
 
-The maps depend on the SOM's seed and grid; a digest holds one map per task, so how
-much the region shares move with them is not measured here (it needs the run
-directories: :func:`exploration_maps` with other :class:`SomSettings`).
+The maps depend on the SOM's seed and grid. :func:`exploration_sensitivity` trains
+the task's map again for several seeds and grids (from the run directories, with one
+pass to sample and one to map) and keeps each run's uniformity and high-fitness share
+on every one of them (:class:`Sensitivity`), which the digest stores beside the map
+when the analysis asked for it. A digest without them (the SDBC vectors are not
+kept) can still vary the region's size on its one map (:data:`REGION_FRACTIONS`,
+:meth:`ExplorationMaps.metrics`); :mod:`.sensitivity` judges the claims on each.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
 
@@ -46,6 +52,12 @@ from sdbc_evolution.study.rundirs import RunData, StudyData
 
 BMU_CHUNK = 4096
 """Individuals mapped per matrix product (bounds the memory of the mapping)."""
+REGION_FRACTIONS = (0.05, 0.1, 0.2)
+"""Sizes of the high-fitness region (fractions of the occupied units) over which a
+digest's one map is re-read: the sensitivity the digest alone can measure."""
+GRID_SCALES = (0.5, 0.75, 1.0)
+"""The grids of a sensitivity analysis by default: the map's rows and columns
+scaled by these (20 x 20: 10 x 10, 15 x 15, 20 x 20)."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +104,76 @@ class SomSettings:
         return self.rows * self.columns
 
 
+class MapNumbers(Protocol):
+    """Per-run numbers of a map, per treatment: what the exploration claims test."""
+
+    @property
+    def task(self) -> str:
+        """Task name."""
+        ...
+
+    @property
+    def treatments(self) -> tuple[str, ...]:
+        """Treatments, the order of ``k``."""
+        ...
+
+    def uniformity(self, k: int) -> np.ndarray:
+        """(R,) normalised entropy of each run of treatment ``k``."""
+        ...
+
+    def region_share(self, k: int) -> np.ndarray:
+        """(R,) share of each run of treatment ``k`` in the high-fitness region."""
+        ...
+
+
+@dataclass(frozen=True)
+class RunMetrics:
+    """Each run's uniformity and high-fitness share on one map (of the
+    treatments in order), without the map."""
+
+    task: str
+    treatments: tuple[str, ...]
+    uniformities: tuple[np.ndarray, ...]
+    region_shares: tuple[np.ndarray, ...]
+
+    def uniformity(self, k: int) -> np.ndarray:
+        """(R,) normalised entropy of each run of treatment ``k``."""
+        return self.uniformities[k]
+
+    def region_share(self, k: int) -> np.ndarray:
+        """(R,) share of each run of treatment ``k`` in the high-fitness region."""
+        return self.region_shares[k]
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    """Every run's numbers on maps trained with other seeds and grids.
+
+    Attributes:
+        seeds: (S,) the maps' seeds (of the sample and the training).
+        grids: (G,) the maps' (rows, columns).
+        uniformity: Per treatment (in the maps' order), (G, S, R) each run's
+            uniformity on each map.
+        region_share: The same for its share in the high-fitness region.
+    """
+
+    seeds: tuple[int, ...]
+    grids: tuple[tuple[int, int], ...]
+    uniformity: tuple[np.ndarray, ...]
+    region_share: tuple[np.ndarray, ...]
+
+    def metrics(
+        self, task: str, treatments: tuple[str, ...], g: int, s: int
+    ) -> RunMetrics:
+        """The runs' numbers on the map of grid ``g`` and seed ``s`` (indices)."""
+        return RunMetrics(
+            task,
+            treatments,
+            tuple(u[g, s] for u in self.uniformity),
+            tuple(h[g, s] for h in self.region_share),
+        )
+
+
 @dataclass(frozen=True)
 class ExplorationMaps:
     """The maps of one task: what the figures, tables and claims need of the SOM,
@@ -108,6 +190,8 @@ class ExplorationMaps:
         pooled_percentile: (U,) the same over every treatment's individuals.
         sample_count: SDBC vectors the map was trained on.
         quantisation_error: Mean distance of the sample to its BMU's weights.
+        sensitivity: The runs' numbers on maps of other seeds and grids, or
+            None (not computed).
     """
 
     task: str
@@ -119,6 +203,7 @@ class ExplorationMaps:
     pooled_percentile: np.ndarray
     sample_count: int
     quantisation_error: float
+    sensitivity: Sensitivity | None = None
 
     @property
     def shares(self) -> tuple[np.ndarray, ...]:
@@ -133,18 +218,29 @@ class ExplorationMaps:
     @property
     def region(self) -> np.ndarray:
         """(U,) bool, the high-fitness region (:func:`high_fitness_region`)."""
+        return self.region_of(self.settings.high_fitness_units)
+
+    def region_of(self, fraction: float) -> np.ndarray:
+        """(U,) bool, the high-fitness region of ``fraction`` of the occupied
+        units."""
         return high_fitness_region(
-            self.pooled_percentile,
-            self.settings.high_fitness_units,
-            deceptive_optimum(self.task),
+            self.pooled_percentile, fraction, deceptive_optimum(self.task)
+        )
+
+    def metrics(self, fraction: float | None = None) -> RunMetrics:
+        """The runs' uniformity and high-fitness share, the region made of
+        ``fraction`` of the occupied units (None: the settings' own)."""
+        region = self.region if fraction is None else self.region_of(fraction)
+        return RunMetrics(
+            self.task,
+            self.treatments,
+            tuple(self.uniformity(k) for k in range(len(self.treatments))),
+            tuple(s[:, region].sum(axis=1) for s in self.shares),
         )
 
     def uniformity(self, k: int) -> np.ndarray:
         """(R,) normalised entropy of each run of treatment ``k``."""
-        s = self.shares[k]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            terms = np.where(s > 0, s * np.log(s), 0.0)
-        return -terms.sum(axis=1) / np.log(self.settings.units)
+        return _uniformity(self.counts[k], self.settings.units)
 
     def region_share(self, k: int) -> np.ndarray:
         """(R,) share of each run of treatment ``k`` in the high-fitness region."""
@@ -155,20 +251,28 @@ class ExplorationMaps:
         return (self.shares[k] > 0).mean(axis=1)
 
 
-def _sample(runs: list[RunData], size: int, rng: np.random.Generator) -> np.ndarray:
-    """About ``size`` raw SDBC vectors, the same number from every run."""
+def _samples(
+    runs: list[RunData], size: int, rngs: Sequence[np.random.Generator]
+) -> list[np.ndarray]:
+    """Per generator, about ``size`` raw SDBC vectors, the same number from every
+    run; one pass over the runs for all of them (each generator draws as it
+    would alone)."""
     per_run = max(1, size // len(runs))
-    parts = []
+    parts: list[list[np.ndarray]] = [[] for _ in rngs]
     for run in runs:
         counts = np.array([f.shape[0] for f in run.fitness])
         total = int(counts.sum())
-        chosen = np.sort(rng.choice(total, size=min(per_run, total), replace=False))
+        chosen = [
+            np.sort(rng.choice(total, size=min(per_run, total), replace=False))
+            for rng in rngs
+        ]
         offsets = np.concatenate([[0], np.cumsum(counts)])
         for g, sdbc in enumerate(run.sdbc_generations()):
-            lo, hi = np.searchsorted(chosen, offsets[g : g + 2])
-            if hi > lo:
-                parts.append(sdbc[chosen[lo:hi] - offsets[g]].astype(np.float64))
-    return np.concatenate(parts)
+            for picked, out in zip(chosen, parts, strict=True):
+                lo, hi = np.searchsorted(picked, offsets[g : g + 2])
+                if hi > lo:
+                    out.append(sdbc[picked[lo:hi] - offsets[g]].astype(np.float64))
+    return [np.concatenate(p) for p in parts]
 
 
 def best_matching_units(weights: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -229,19 +333,10 @@ def high_fitness_region(
     return region
 
 
-def exploration_maps(
-    study: StudyData, task: str, settings: SomSettings | None = None
-) -> ExplorationMaps:
-    """Trains the task's map and maps every run onto it (see module docstring)."""
+def _train(sample: np.ndarray, settings: SomSettings) -> np.ndarray:
+    """(U, D) weights of a map trained on the z-scored ``sample``."""
     from minisom import MiniSom
 
-    settings = settings or SomSettings()
-    treatments = tuple(study.treatments(task))
-    runs = study.of(task)
-    rng = np.random.default_rng(settings.seed)
-    raw = _sample(runs, settings.sample_size, rng)
-    scaler = _Scaler(raw)
-    sample = scaler(raw)
     som = MiniSom(
         settings.rows,
         settings.columns,
@@ -252,7 +347,29 @@ def exploration_maps(
     )
     som.random_weights_init(sample)
     som.train(sample, settings.iterations, random_order=True)
-    weights = som.get_weights().reshape(settings.units, -1)
+    return np.asarray(som.get_weights()).reshape(settings.units, -1)
+
+
+def _uniformity(counts: np.ndarray, units: int) -> np.ndarray:
+    """(R,) normalised entropy of each row of ``counts`` (R, U)."""
+    s = counts / counts.sum(axis=1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(s > 0, s * np.log(s), 0.0)
+    return np.asarray(-terms.sum(axis=1) / np.log(units))
+
+
+def exploration_maps(
+    study: StudyData, task: str, settings: SomSettings | None = None
+) -> ExplorationMaps:
+    """Trains the task's map and maps every run onto it (see module docstring)."""
+    settings = settings or SomSettings()
+    treatments = tuple(study.treatments(task))
+    runs = study.of(task)
+    rng = np.random.default_rng(settings.seed)
+    raw = _samples(runs, settings.sample_size, [rng])[0]
+    scaler = _Scaler(raw)
+    sample = scaler(raw)
+    weights = _train(sample, settings)
     sample_units = best_matching_units(weights, sample)
     quantisation_error = float(
         np.linalg.norm(sample - weights[sample_units], axis=1).mean()
@@ -295,4 +412,97 @@ def exploration_maps(
         pooled_percentile=pooled,
         sample_count=int(sample.shape[0]),
         quantisation_error=quantisation_error,
+    )
+
+
+def default_grids(settings: SomSettings) -> tuple[tuple[int, int], ...]:
+    """The grids of a sensitivity analysis of maps made with ``settings``: its
+    rows and columns scaled by :data:`GRID_SCALES` (at least 2 x 2)."""
+    return tuple(
+        dict.fromkeys(
+            (max(2, round(settings.rows * f)), max(2, round(settings.columns * f)))
+            for f in GRID_SCALES
+        )
+    )
+
+
+def exploration_sensitivity(
+    study: StudyData,
+    task: str,
+    settings: SomSettings,
+    seeds: Sequence[int],
+    grids: Sequence[tuple[int, int]],
+) -> Sensitivity:
+    """Each run's uniformity and high-fitness share on the task's map trained
+    again with every seed of ``seeds`` and grid of ``grids``, the other settings
+    ``settings``' (the map of ``settings``' own seed and grid is the one
+    :func:`exploration_maps` makes). Two passes over the runs' SDBC vectors
+    whatever the number of maps; every individual's unit on every map is held
+    at once (2 bytes each, up to 32768 units)."""
+    if not seeds or not grids:
+        raise ValueError("a sensitivity analysis needs at least one seed and grid")
+    treatments = tuple(study.treatments(task))
+    runs = [r for t in treatments for r in study.of(task, t)]
+    raws = _samples(
+        study.of(task),
+        settings.sample_size,
+        [np.random.default_rng(seed) for seed in seeds],
+    )
+    scalers = [_Scaler(raw) for raw in raws]
+    maps = [
+        [
+            _train(
+                scaler(raw),
+                replace(settings, rows=rows, columns=columns, seed=seed),
+            )
+            for seed, scaler, raw in zip(seeds, scalers, raws, strict=True)
+        ]
+        for rows, columns in grids
+    ]
+    counts = [
+        [np.zeros((len(runs), rows * columns), dtype=np.int64) for _ in seeds]
+        for rows, columns in grids
+    ]
+    units: list[list[list[np.ndarray]]] = [[[] for _ in seeds] for _ in grids]
+    small = np.int16 if max(r * c for r, c in grids) <= 2**15 else np.int64
+    fitness = []
+    for i, run in enumerate(runs):
+        for sdbc in run.sdbc_generations():
+            for s, scaler in enumerate(scalers):
+                z = scaler(sdbc)
+                for g in range(len(grids)):
+                    found = best_matching_units(maps[g][s], z)
+                    counts[g][s][i] += np.bincount(
+                        found, minlength=counts[g][s].shape[1]
+                    )
+                    units[g][s].append(found.astype(small))
+        fitness.append(np.concatenate(run.fitness))
+    pooled_fitness = np.concatenate(fitness)
+    floor = deceptive_optimum(task)
+    uniformity = np.empty((len(grids), len(seeds), len(runs)))
+    share = np.empty_like(uniformity)
+    for g, (rows, columns) in enumerate(grids):
+        for s in range(len(seeds)):
+            pooled = _percentiles(
+                np.concatenate(units[g][s]).astype(np.int64),
+                pooled_fitness,
+                rows * columns,
+                settings.fitness_percentile,
+            )
+            units[g][s] = []
+            region = high_fitness_region(pooled, settings.high_fitness_units, floor)
+            c = counts[g][s]
+            uniformity[g, s] = _uniformity(c, rows * columns)
+            share[g, s] = c[:, region].sum(axis=1) / c.sum(axis=1)
+    bounds = np.cumsum([0] + [len(study.of(task, t)) for t in treatments])
+    return Sensitivity(
+        seeds=tuple(int(x) for x in seeds),
+        grids=tuple((int(r), int(c)) for r, c in grids),
+        uniformity=tuple(
+            uniformity[:, :, lo:hi]
+            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
+        ),
+        region_share=tuple(
+            share[:, :, lo:hi] for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
+        ),
     )

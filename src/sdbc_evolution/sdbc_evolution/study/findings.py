@@ -21,6 +21,7 @@ from sdbc_evolution.study.exploration import ExplorationMaps, SomSettings
 from sdbc_evolution.study.quality import Curves, PairTest
 from sdbc_evolution.study.relevance import RelevanceTable
 from sdbc_evolution.study.rundirs import RunProblem
+from sdbc_evolution.study.sensitivity import MapSensitivity
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,11 @@ class AnalysisSettings:
     """Significance level of the claims."""
     cluster_workers: tuple[int, ...] = CLUSTER_WORKERS
     """Cluster sizes of the paper preset's projection."""
+    sensitivity_seeds: int = 0
+    """Maps trained again per grid, seeds ``som.seed`` on, to measure the
+    exploration numbers' sensitivity (from run directories only; 0: none)."""
+    sensitivity_grids: tuple[tuple[int, int], ...] | None = None
+    """Their (rows, columns); None: :func:`~.exploration.default_grids`."""
 
     def __post_init__(self) -> None:
         if self.top_features < 1:
@@ -43,6 +49,20 @@ class AnalysisSettings:
             raise ValueError(f"alpha must be in (0, 1), got {self.alpha}")
         if not self.cluster_workers or min(self.cluster_workers) < 1:
             raise ValueError("cluster_workers must be positive")
+        if self.sensitivity_seeds < 0:
+            raise ValueError(
+                f"sensitivity_seeds must be >= 0, got {self.sensitivity_seeds}"
+            )
+        if self.sensitivity_grids is not None and (
+            not self.sensitivity_grids
+            or min(min(g) for g in self.sensitivity_grids) < 2
+        ):
+            raise ValueError("sensitivity_grids: at least one, each at least 2 x 2")
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        """The sensitivity analysis's seeds (none when it is not asked for)."""
+        return tuple(range(self.som.seed, self.som.seed + self.sensitivity_seeds))
 
 
 @dataclass
@@ -66,6 +86,9 @@ class TaskAnalysis:
     """Which statistic of a run ``bests`` holds (:func:`.quality.run_statistic`)."""
     last_tests: list[PairTest] = field(default_factory=list)
     """The same tests on each run's last best (reported, deciding nothing)."""
+    sensitivity: list[MapSensitivity] = field(default_factory=list)
+    """The exploration numbers on other maps and region sizes
+    (:mod:`.sensitivity`), of each kind the digest allows."""
 
 
 @dataclass

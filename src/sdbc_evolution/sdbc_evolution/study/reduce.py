@@ -8,7 +8,9 @@ a sample, then every individual mapped). Everything after this works on the dige
 
 from __future__ import annotations
 
+import dataclasses
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +22,12 @@ from sdbc_evolution.study.digest import (
     StudyDigest,
     TaskDigest,
 )
-from sdbc_evolution.study.exploration import SomSettings, exploration_maps
+from sdbc_evolution.study.exploration import (
+    SomSettings,
+    default_grids,
+    exploration_maps,
+    exploration_sensitivity,
+)
 from sdbc_evolution.study.plan import LOG_FILE, STUDY_FILE
 from sdbc_evolution.study.presets import PresetError, load_preset_file
 from sdbc_evolution.study.relevance import (
@@ -92,8 +99,15 @@ def reduce_run(run: RunData) -> RunDigest:
     )
 
 
-def reduce_task(study: StudyData, task: str, som: SomSettings) -> TaskDigest:
-    """One task's digest.
+def reduce_task(
+    study: StudyData,
+    task: str,
+    som: SomSettings,
+    seeds: Sequence[int] = (),
+    grids: Sequence[tuple[int, int]] | None = None,
+) -> TaskDigest:
+    """One task's digest; with ``seeds``, the maps' sensitivity to them and to
+    ``grids`` (default: :func:`~.exploration.default_grids`).
 
     Raises:
         ValueError: The task's runs do not share one SDBC (different settings).
@@ -109,13 +123,19 @@ def reduce_task(study: StudyData, task: str, som: SomSettings) -> TaskDigest:
                 "the runs are not of one task setting"
             )
     built = make_task(task, **runs[0].config.task_config)
+    maps = exploration_maps(study, task, som)
+    if seeds:
+        sensitivity = exploration_sensitivity(
+            study, task, som, seeds, default_grids(som) if grids is None else grids
+        )
+        maps = dataclasses.replace(maps, sensitivity=sensitivity)
     return TaskDigest(
         task=task,
         sdbc_names=names,
         bodies=int(built.layout.n_bodies),
         max_steps=int(built.max_steps),
         runs=tuple(reduce_run(r) for r in runs),
-        maps=exploration_maps(study, task, som),
+        maps=maps,
     )
 
 
@@ -124,10 +144,13 @@ def reduce_study(
     som: SomSettings,
     study_dir: str | None = None,
     command: list[str] | None = None,
+    seeds: Sequence[int] = (),
+    grids: Sequence[tuple[int, int]] | None = None,
 ) -> StudyDigest:
     """The digest of ``study``; ``study_dir`` is how the report names the study
     directory (default: its path as loaded), and the ``--out`` of the study log's
-    commands (:func:`with_study_dir`)."""
+    commands (:func:`with_study_dir`); ``seeds`` and ``grids`` as
+    :func:`reduce_task` takes them."""
     preset, preset_error = None, None
     if (study.root / STUDY_FILE).is_file():
         try:
@@ -144,7 +167,9 @@ def reduce_study(
     label = str(study.root) if study_dir is None else study_dir
     return StudyDigest(
         study_dir=label,
-        task_digests=tuple(reduce_task(study, t, som) for t in study.tasks()),
+        task_digests=tuple(
+            reduce_task(study, t, som, seeds, grids) for t in study.tasks()
+        ),
         problems=tuple(study.problems),
         expected=study.expected,
         sessions=tuple(

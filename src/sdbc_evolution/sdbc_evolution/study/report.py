@@ -41,6 +41,7 @@ from sdbc_evolution.study.presets import PAPER_RUNS
 from sdbc_evolution.study.quality import PairTest
 from sdbc_evolution.study.relevance import BITS, task_specific_features
 from sdbc_evolution.study.rundirs import MISSING, RunProblem
+from sdbc_evolution.study.sensitivity import MAP, REGION
 
 if TYPE_CHECKING:
     from sdbc_evolution.study.cost import Projection
@@ -467,9 +468,8 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         "percentile over all treatments"
         + _region_floor(ta.task, maps)
         + "). Quantisation error "
-        f"{maps.quantisation_error:.2f} (z units). The shares depend on the SOM's "
-        f"seed ({s.seed}) and grid; a digest holds one map, so their sensitivity "
-        "to either is untested here.",
+        f"{maps.quantisation_error:.2f} (z units); seed {s.seed}. How much the "
+        "numbers depend on the map is below the table.",
         "",
     ]
     rows = []
@@ -494,6 +494,97 @@ def _exploration_section(ta: TaskAnalysis, analysis: Analysis) -> list[str]:
         ],
         rows,
     )
+    return lines + _sensitivity_section(ta)
+
+
+def _share_range(values: np.ndarray) -> str:
+    return f"{values.min():.3f}-{values.max():.3f}"
+
+
+def _sensitivity_section(ta: TaskAnalysis) -> list[str]:
+    by_kind = {found.kind: found for found in ta.sensitivity}
+    task = ta.task
+    lines = ["#### How much the exploration numbers depend on the map", ""]
+    found = by_kind.get(MAP)
+    if found is None:
+        lines += [
+            "The SOM's seed and grid: not measured. This digest holds one map "
+            "and not the SDBC vectors another one needs (`sdbc-study analyse "
+            "STUDY --som-seeds N` measures it from the run directories).",
+            "",
+        ]
+    else:
+        seeds = sorted({x.seed for x in found.settings})
+        grids = list(dict.fromkeys((x.rows, x.columns) for x in found.settings))
+        lines += [
+            f"The map trained again with seeds {seeds[0]}-{seeds[-1]} on grids "
+            + ", ".join(f"{r} x {c}" for r, c in grids)
+            + f" ({len(found.settings)} maps; the other settings as above; "
+            f"`tables/exploration_sensitivity_{task}.csv`). Mean share in the "
+            "high-fitness region, per treatment: on this map, its range over the "
+            "seeds of each grid, and its SD over all the maps:",
+            "",
+        ]
+        columns = [
+            [n for n, x in enumerate(found.settings) if (x.rows, x.columns) == g]
+            for g in grids
+        ]
+        lines += markdown_table(
+            ["treatment", "this map"]
+            + [f"{r} x {c}" for r, c in grids]
+            + ["SD over maps"],
+            [
+                [label(t), f"{found.on_map[k]:.3f}"]
+                + [_share_range(found.shares[k, c]) for c in columns]
+                + [f"{np.std(found.shares[k], ddof=1):.3f}"]
+                for k, t in enumerate(found.treatments)
+            ],
+        )
+        if found.claims:
+            lines += [
+                "Each exploration claim judged again on every map (the same rules, "
+                f"Holm over the task's exploration tests on each; "
+                f"`tables/exploration_stability_{task}.csv`):",
+                "",
+            ]
+            lines += markdown_table(
+                [
+                    "claim",
+                    "this map",
+                    "same verdict on",
+                    "agree / disagree / inconclusive",
+                ],
+                [
+                    [
+                        c.statement,
+                        c.verdict.value,
+                        f"{c.same} of {len(c.verdicts)} maps",
+                        " / ".join(str(c.count(v)) for v in Verdict),
+                    ]
+                    for c in found.claims
+                ],
+            )
+    found = by_kind.get(REGION)
+    if found is not None:
+        lines += [
+            "The high-fitness region's size, on this map (mean share per "
+            "treatment with the region made of each fraction of the occupied "
+            "units):",
+            "",
+        ]
+        heads = [f"{100 * x.fraction:g} %" for x in found.settings]
+        lines += markdown_table(
+            ["treatment", *heads],
+            [
+                [label(t)] + [f"{v:.3f}" for v in found.shares[k]]
+                for k, t in enumerate(found.treatments)
+            ],
+        )
+        if found.claims:
+            lines += markdown_table(
+                ["claim", *heads],
+                [[c.statement] + [v.value for v in c.verdicts] for c in found.claims],
+            )
     return lines
 
 
