@@ -30,25 +30,23 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import PHYSICS_MODELS, ConfigError, check_task_config
+from sdbc_evolution.run.config import PHYSICS_MODELS, ConfigError
 from sdbc_evolution.run.evaluators import (
     SchedulerLost,
     SchedulerUnreachable,
-    TaskInfo,
     ValuesOutOfRange,
     add_evaluator_arguments,
     check_evaluator_arguments,
     make_evaluator,
-    probe_task,
     quiet_dask_logging,
 )
 from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
-from sdbc_evolution.run.footprint import check_footprint
 from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import available_cores
 from sdbc_evolution.run.request import (
     RESULTS_ROOT,
     ConfigRequest,
+    check_before_run,
     default_out,
     resolve_config,
 )
@@ -170,17 +168,11 @@ def _main(args: argparse.Namespace) -> int:
     try:
         check_evaluator_arguments(args)
         config = resolve_config(config_request(args))
-        # The task's own settings too, so that a bad one stops before any run.
-        check_task_config(config.task, config.task_config)
         out = args.out if args.out is not None else default_out(config)
         if out.exists() and not out.is_dir():
             raise ConfigError(f"--out {out}: a file, not a directory")
         workers = 1 if args.scheduler is not None else args.workers
-        info = TaskInfo.of(task_spec(config))
-        check_footprint(
-            config, info, workers=available_cores() if workers is None else workers
-        )
-        probe_task(task_spec(config), info)
+        check_before_run(config, available_cores() if workers is None else workers)
         if args.scheduler is not None:
             quiet_dask_logging()
         evaluator = make_evaluator(

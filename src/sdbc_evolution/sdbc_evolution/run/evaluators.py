@@ -56,7 +56,9 @@ __all__ = [
     "Evaluator",
     "TaskInfo",
     "TaskSpec",
+    "TaskFailed",
     "ValuesOutOfRange",
+    "check_first_trial",
     "check_values",
 ]
 
@@ -216,13 +218,24 @@ def probe_task(spec: TaskSpec, info: TaskInfo) -> None:
     genome = np.zeros((1, info.genome_length))
     try:
         evaluation = evaluate_chunk(spec, genome, np.zeros((1, 1), dtype=np.int64))
-        check_values(evaluation, spec.name)
-    except ValuesOutOfRange as error:
-        raise TaskFailed(f"a first trial: {error}") from None
     except (ValueError, TypeError, IndexError, KeyError) as error:
         raise TaskFailed(
             f"task {spec.name!r} fails its first trial: {type(error).__name__}: {error}"
         ) from None
+    check_first_trial(evaluation, spec.name)
+
+
+def check_first_trial(evaluation: Evaluation, task: str) -> None:
+    """:func:`check_values` of a trial run before the run directory exists (by
+    :func:`probe_task`, or on another system's simulator), said as such.
+
+    Raises:
+        TaskFailed: Naming the first bad value.
+    """
+    try:
+        check_values(evaluation, task)
+    except ValuesOutOfRange as error:
+        raise TaskFailed(f"a first trial: {error}") from None
 
 
 def chunk_bounds(n: int, chunks: int) -> list[tuple[int, int]]:
