@@ -297,13 +297,10 @@ def check_values(evaluation: Evaluation, task: str) -> None:
         checks.append((f"characterisation {key!r}", values, bounds))
     for label, values, bounds in checks:
         values = np.asarray(values, dtype=np.float64)
-        bad = ~np.isfinite(values)
-        if bounds is not None:
-            bad |= (values < bounds[0]) | (values > bounds[1])
-        if not bad.any():
+        outside = first_outside(values, bounds)
+        if outside is None:
             continue
-        where = tuple(int(i) for i in np.argwhere(bad)[0])
-        allowed = "finite" if bounds is None else f"in [{bounds[0]:g}, {bounds[1]:g}]"
+        where, count = outside
         position = (
             f"genome {where[0]}, trial {where[1]}"
             if label == "trial fitness"
@@ -311,9 +308,30 @@ def check_values(evaluation: Evaluation, task: str) -> None:
         )
         raise ValuesOutOfRange(
             f"task {task!r} returned {label} {float(values[where])!r} at {position} "
-            f"({int(bad.sum())} of {values.size} values), the contract says "
-            f"{allowed}: fix the task or simulator (docs/limits.md), then resume"
+            f"({count} of {values.size} values), the contract says "
+            f"{allowed(bounds)}: fix the task or simulator (docs/limits.md), then "
+            "resume"
         )
+
+
+def first_outside(
+    values: np.ndarray, bounds: tuple[float, float] | None
+) -> tuple[tuple[int, ...], int] | None:
+    """Where the first value of ``values`` that is not finite or outside
+    ``bounds`` (None: finite is enough) is, and how many such values there are;
+    None if there are none."""
+    values = np.asarray(values, dtype=np.float64)
+    bad = ~np.isfinite(values)
+    if bounds is not None:
+        bad |= (values < bounds[0]) | (values > bounds[1])
+    if not bad.any():
+        return None
+    return tuple(int(i) for i in np.argwhere(bad)[0]), int(bad.sum())
+
+
+def allowed(bounds: tuple[float, float] | None) -> str:
+    """What ``bounds`` allow, in words: ``in [0, 1]``, or ``finite`` for None."""
+    return "finite" if bounds is None else f"in [{bounds[0]:g}, {bounds[1]:g}]"
 
 
 class Evaluator(ABC):
