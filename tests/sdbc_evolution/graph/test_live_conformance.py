@@ -2,11 +2,13 @@
 written against the contract alone): it passes as it is, and each way of
 breaking the contract that a live run would meet (a fitness of 20, a
 characterisation value of 19, a group of the wrong size, a group more in some
-messages, a step missing) fails one check with one line naming the problem."""
+messages, a step missing) fails one check with one line naming the problem.
+This project's own graph (``sdbc-graph``) passes too."""
 
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -15,7 +17,8 @@ import pytest
 
 pytestmark = pytest.mark.ros
 
-HERE = Path(__file__).resolve().parents[3] / "examples" / "06_ros2_system"
+ROOT = Path(__file__).resolve().parents[3]
+HERE = ROOT / "examples" / "06_ros2_system"
 CHECK_TIMEOUT = 600.0
 """Seconds the checks may take on a loaded two-core machine."""
 
@@ -112,3 +115,37 @@ def test_another_systems_task_needs_its_sizes(ros_home: Path) -> None:
         "sdbc-conformance: error: task 'point_chase' is not one of this project's: "
         "give its --robots and --genome-length"
     )
+
+
+def test_this_projects_graph_keeps_to_the_contract(
+    tmp_path: Path, ros_home: Path
+) -> None:
+    graph = tmp_path / "graph.yaml"
+    graph.write_text(
+        (ROOT / "configs" / "ros" / "gate_escape.yaml")
+        .read_text()
+        .replace('task_config: "{}"', 'task_config: "{max_steps: 60}"')
+    )
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    launcher = subprocess.Popen(
+        [sys.executable, "-m", "sdbc_evolution.graph.launch", str(graph)]
+        + ["--log-dir", str(tmp_path / "logs")],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        done = conformance(
+            "gate_escape", "--task-config", "{max_steps: 60}", "--graph-timeout", "300"
+        )
+    finally:
+        launcher.send_signal(signal.SIGINT)
+        try:
+            launcher.wait(timeout=120)
+        except subprocess.TimeoutExpired:
+            launcher.kill()
+            launcher.wait()
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "4/4 checks passed for gate_escape" in done.stdout
+    assert "4 trials of 60-60 steps" in done.stdout, done.stdout
+    assert "4 characterisation values each" in done.stdout, done.stdout
