@@ -31,8 +31,10 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("sdbc_evolution.transforms",),
     ("sdbc_evolution.ga",),
     ("sdbc_evolution.run",),
-    ("sdbc_evolution.conformance",),
     ("sdbc_evolution.graph", "sdbc_evolution.study"),
+    # sdbc-conformance: a task's checks, and a running simulator's through the
+    # graph (--live).
+    ("sdbc_evolution.conformance",),
     ("sdbc_evolution.nodes",),
     # The package's own __init__: the curated front (NoveltySearch and the few
     # names a researcher needs), loaded lazily from the layers below it; no module

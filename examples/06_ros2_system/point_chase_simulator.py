@@ -13,12 +13,18 @@ chase a static target.
 
 A trial is a function of (seed, genomes): the evolution node gets the same results
 twice. Run as a script; Ctrl-C stops it (``evolve.py`` starts and stops it).
-``--fitness VALUE`` answers every trial with that fitness instead, as a simulator
-breaking the contract would (for the evolution side's check of what comes in).
+Its options make it break the contract as a faulty simulator would, for the
+checks of what comes in (the evolution node's, ``sdbc-conformance --live``):
+``--fitness VALUE`` answers every trial with that fitness, ``--characterisation
+VALUE`` every characterisation value with that one, ``--skip-step N`` never
+publishes step N's task state, ``--chasers N`` publishes N chasers in a group
+that declares ROBOTS, ``--extra-group-from N`` publishes a third group from step
+N on.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import signal
 import subprocess
@@ -34,12 +40,24 @@ MAX_STEPS = 25
 CATCH_RADIUS = 0.5
 
 
-def main() -> int:
-    answered_fitness = (
-        float(sys.argv[sys.argv.index("--fitness") + 1])
-        if "--fitness" in sys.argv
-        else None
+def faults(argv: list[str] | None = None) -> argparse.Namespace:
+    """The ways of breaking the contract the command line asks for (none: it
+    keeps to it)."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--fitness", type=float, help="answer every trial with it")
+    parser.add_argument(
+        "--characterisation", type=float, help="answer every value with it"
     )
+    parser.add_argument("--skip-step", type=int, help="never publish this step")
+    parser.add_argument("--chasers", type=int, help="chasers published each step")
+    parser.add_argument(
+        "--extra-group-from", type=int, metavar="STEP", help="a third group from it"
+    )
+    return parser.parse_args(argv)
+
+
+def main() -> int:
+    fault = faults()
     import rclpy
     from geometry_msgs.msg import Point
     from rcl_interfaces.msg import SetParametersResult
@@ -101,18 +119,21 @@ def main() -> int:
                 robots = robots + velocity
                 distance = np.linalg.norm(robots - target, axis=1)
                 done = step == MAX_STEPS or bool((distance < CATCH_RADIUS).all())
-                self.states.publish(
-                    self.state(request, step, robots, velocity, target, done)
-                )
+                if step != fault.skip_step:
+                    self.states.publish(
+                        self.state(request, step, robots, velocity, target, done)
+                    )
                 if done:
                     break
             response.success = True
             response.fitness = float(max(0.0, 1.0 - distance.mean() / start))
-            if answered_fitness is not None:
-                response.fitness = answered_fitness
+            if fault.fitness is not None:
+                response.fitness = fault.fitness
             response.characterisation = [
                 float(min(1.0, max(0.0, 0.5 + v / 40.0))) for v in robots.mean(axis=0)
             ]
+            if fault.characterisation is not None:
+                response.characterisation = [fault.characterisation] * 2
             response.characterisation_names = ["mean x", "mean y"]
             response.length = step
             return response
@@ -127,6 +148,8 @@ def main() -> int:
                 )
                 for (x, y), v in zip(robots, velocity, strict=True)
             ]
+            if fault.chasers is not None:
+                chasers = (chasers * fault.chasers)[: fault.chasers]
             goal = Entity(
                 geometry=Entity.GEOMETRY_POINT,
                 centre=Point(x=float(target[0]), y=float(target[1])),
@@ -149,6 +172,10 @@ def main() -> int:
                     is_static=True,
                 ),
             ]
+            if fault.extra_group_from is not None and step >= fault.extra_group_from:
+                msg.groups.append(
+                    EntityGroup(name="Extra", entities=[goal], min_size=1, max_size=1)
+                )
             return msg
 
     rclpy.init()

@@ -70,3 +70,68 @@ def test_the_command_exits_1_on_a_failed_check_and_2_on_bad_input(
     assert main(["gate_scape"]) == 2
     assert "unknown task 'gate_scape'" in capsys.readouterr().err
     assert main(["gate_escape", "--task-config", "[1, 2]"]) == 2
+
+
+LIVE_WITHOUT = """\
+import sys
+for name in sys.argv[1:]:
+    sys.modules[name] = None  # not importable, as on a plain pip install
+from sdbc_evolution.conformance import main
+sys.exit(main(["--live", "point_chase", "--robots", "2", "--genome-length", "6"]))
+"""
+
+
+@pytest.mark.parametrize("missing", [["rclpy"], ["sdbc_msgs"], ["rclpy", "sdbc_msgs"]])
+def test_live_checks_without_ros_are_one_line_and_exit_2(missing: list[str]) -> None:
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-c", LIVE_WITHOUT, *missing],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert done.stdout == ""
+    [line] = done.stderr.strip().splitlines()
+    assert line.startswith(
+        f"sdbc-conformance --live: error: needs {', '.join(missing)}, which "
+    ), line
+    assert "run scripts/sdbc setup" in line, line
+
+
+def test_the_task_checks_load_no_ros() -> None:
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys, sdbc_evolution.conformance\n"
+            "print(sorted({'rclpy', 'sdbc_msgs'} & set(sys.modules)))",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--check", "ranges"], "--check names checks of a task; --live runs its own"),
+        (["--robots", "0"], "--robots: must be at least 1, got 0"),
+        (["--graph-timeout", "1e300"], "--graph-timeout: must be in (0, "),
+        (["--graph-timeout", "nan"], "--graph-timeout: must be in (0, "),
+    ],
+)
+def test_bad_live_flags_are_one_line_and_exit_2(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["point_chase", "--live", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err, err

@@ -35,7 +35,18 @@ The checks, in order (:data:`CHECKS`):
 - ``settings``: bad task settings are refused naming the setting: a value of the
   wrong type for every setting, NaN for every number, and an unknown key.
 
-Exit status: 0 every check passed, 1 some check failed, 2 bad input.
+``sdbc-conformance --live TASK`` checks a running simulator instead, through ROS 2,
+against the contract of evolution through another simulator (docs/ros2.md): the
+graph's nodes and parameters, genomes, every step of a few trials' task state,
+and the answers' ranges (:mod:`sdbc_evolution.graph.conformance`)::
+
+    sdbc-conformance --live point_chase --robots 2 --genome-length 6
+    sdbc-conformance --live gate_escape --namespace graph_0
+
+A live check that fails stops the ones after it, which need what it checks.
+
+Exit status: 0 every check passed, 1 some check failed, 2 bad input (or, with
+``--live``, no rclpy or sdbc_msgs: ``scripts/sdbc setup`` brings them).
 """
 
 from __future__ import annotations
@@ -49,7 +60,7 @@ import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from sdbc_sim.engine import BatchResult, TrialStepper, run_batch
@@ -66,6 +77,9 @@ from sdbc_sim.task_state import (
 from sdbc_sim.tasks import UnknownTask, make_task, resolve_task, task_reference
 
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor, dimension_names
+
+if TYPE_CHECKING:
+    from sdbc_evolution.graph.conformance import LiveTarget
 
 GENOMES = 4
 """Random genomes of the checks' batch."""
@@ -529,12 +543,36 @@ def run_checks(
     if unknown:
         raise ValueError(f"unknown checks {unknown}; known: {', '.join(CHECKS)}")
     subject = Subject(task_reference(reference), dict(task_config or {}), seed)
-    results = []
-    for name in names:
+    return run_named({name: CHECKS[name] for name in names}, subject)
+
+
+S = TypeVar("S")
+
+
+def run_named(
+    checks: Mapping[str, Callable[[S], str]],
+    subject: S,
+    failures: tuple[type[Exception], ...] = (CheckFailed,),
+    stop_at_failure: bool = False,
+) -> list[CheckResult]:
+    """Runs each of ``checks`` on ``subject`` in turn, timed.
+
+    Args:
+        failures: Exceptions that say a check does not hold (their message
+            alone is the detail); any other is reported with its type.
+        stop_at_failure: Whether the checks after a failed one are not run
+            (failed, naming it), as when each needs what the one before checks.
+    """
+    holds_not: tuple[type[Exception], ...] = (CheckFailed, *failures)
+    results: list[CheckResult] = []
+    for name, check in checks.items():
         start = time.perf_counter()
+        failed = next((r.name for r in results if not r.passed), None)
         try:
-            detail, passed = CHECKS[name](subject), True
-        except CheckFailed as error:
+            if stop_at_failure and failed is not None:
+                raise CheckFailed(f"not run: the {failed} check failed")
+            detail, passed = check(subject), True
+        except holds_not as error:
             detail, passed = str(error), False
         except (SettingsError, UnknownTask) as error:
             detail, passed = f"the task cannot be built: {error}", False
@@ -542,6 +580,22 @@ def run_checks(
             detail, passed = f"{type(error).__name__}: {error}", False
         results.append(CheckResult(name, passed, detail, time.perf_counter() - start))
     return results
+
+
+def run_live_checks(target: LiveTarget) -> list[CheckResult]:
+    """Runs every live check (:mod:`sdbc_evolution.graph.conformance`) on the
+    graph ``target``; needs rclpy and the built sdbc_msgs.
+
+    Raises:
+        ValueError: A target at odds with its task (the message says how).
+    """
+    from sdbc_evolution.graph.client import GraphClientError
+    from sdbc_evolution.graph.conformance import LIVE_CHECKS, LiveSubject
+
+    with LiveSubject(target) as subject:
+        return run_named(
+            LIVE_CHECKS, subject, failures=(GraphClientError,), stop_at_failure=True
+        )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -570,20 +624,82 @@ def main(argv: Sequence[str] | None = None) -> int:
         choices=list(CHECKS),
         help="run only this check (repeatable; default: all)",
     )
+    live = parser.add_argument_group(
+        "a running simulator", "checked through ROS 2 against the contract of "
+        "evolution through another simulator (docs/ros2.md)"
+    )  # fmt: skip
+    live.add_argument(
+        "--live",
+        action="store_true",
+        help="check the simulator running TASK on the graph instead of the task",
+    )
+    live.add_argument("--robots", type=int, help="robots of another system's task")
+    live.add_argument(
+        "--genome-length", type=int, help="genes of another system's task"
+    )
+    live.add_argument("--namespace", default="", help="the graph's namespace")
+    live.add_argument(
+        "--graph-timeout",
+        type=float,
+        default=60.0,
+        help="seconds to wait for the graph and for each answer (default 60)",
+    )
     args = parser.parse_args(argv)
     try:
         task_config = parse_task_config(args.task_config)
-        resolve_task(args.task)
+        if args.live:
+            results = _live(args, task_config)
+        else:
+            resolve_task(args.task)
+            results = run_checks(args.task, task_config, args.check)
     except ValueError as error:
         print(f"sdbc-conformance: error: {error}", file=sys.stderr)
         return 2
-    results = run_checks(args.task, task_config, args.check)
     for r in results:
         mark = "ok  " if r.passed else "FAIL"
         print(f"{mark} {r.name:<12} {r.seconds:6.1f} s  {r.detail}")
     passed = sum(r.passed for r in results)
     print(f"{passed}/{len(results)} checks passed for {args.task}")
     return 0 if passed == len(results) else 1
+
+
+def _live(args: argparse.Namespace, task_config: dict[str, Any]) -> list[CheckResult]:
+    """The live checks the command line asks for (or SystemExit 2 without ROS)."""
+    from sdbc_sim.limits import MAX_CONNECT_TIMEOUT
+    from sdbc_sim.nodes.entry import require
+
+    if args.check:
+        raise ValueError("--check names checks of a task; --live runs its own")
+    for flag, value in (
+        ("--robots", args.robots),
+        ("--genome-length", args.genome_length),
+    ):
+        if value is not None and value < 1:
+            raise ValueError(f"{flag}: must be at least 1, got {value}")
+    timeout = args.graph_timeout
+    if not 0 < timeout <= MAX_CONNECT_TIMEOUT:
+        raise ValueError(
+            f"--graph-timeout: must be in (0, MAX_CONNECT_TIMEOUT="
+            f"{MAX_CONNECT_TIMEOUT:g}], got {timeout}"
+        )
+    require("sdbc-conformance --live")
+    from sdbc_evolution.graph.conformance import LiveTarget
+    from sdbc_evolution.graph.graph_file import GraphError, check_namespace
+
+    try:
+        namespace = check_namespace(args.namespace)
+    except GraphError as error:
+        raise ValueError(f"--namespace: {error}") from None
+    return run_live_checks(
+        LiveTarget(
+            task=args.task,
+            task_config=task_config,
+            robots=args.robots,
+            genome_length=args.genome_length,
+            namespace=namespace,
+            timeout=timeout,
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -158,3 +158,40 @@ def test_bad_parameters_stop_the_node_before_any_work_with_a_reason(tmp_path):
         assert result.returncode == 2, (parameter, result.stderr)
         assert message in result.stderr, (parameter, result.stderr)
         assert not (Path(tmp_path) / "out").exists()
+
+
+BOUNDARY_TASKS = Path(__file__).resolve().parents[1] / "run" / "boundary_tasks.py"
+"""Gate escape with one fault each (tests/sdbc_evolution/run/)."""
+
+
+@pytest.mark.parametrize(
+    ("task", "message"),
+    [
+        ("NegativeFitness", "a first trial: task '{task}' returned trial fitness -"),
+        ("MissingGroup", "task '{task}' fails its first trial: ValueError: task "
+         "'gate_escape', step 1: 2 groups in the state, 3 in the description"),
+    ],
+)  # fmt: skip
+def test_the_node_runs_the_command_lines_first_trial_before_its_run_directory(
+    tmp_path: Path, task: str, message: str
+) -> None:
+    # The probe sdbc-evolve makes (probe_task): a task breaking the contract is
+    # one line and exit status 2, and no run directory is made.
+    reference = f"{BOUNDARY_TASKS}:{task}"
+    experiment = tmp_path / "experiment.yaml"
+    experiment.write_text(yaml.safe_dump({**EXPERIMENT, "task": reference}))
+    out = tmp_path / "out"
+    env = {
+        **os.environ,
+        "ROS_HOME": str(tmp_path),
+        "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
+    }
+    argv = [sys.executable, "-m", "sdbc_evolution.nodes.evolution_node"]
+    argv += ["--ros-args", "-p", f"experiment_config:={experiment}"]
+    argv += ["-p", f"output:={out}", "-p", "workers:=1"]
+    result = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=300)
+    assert result.returncode == 2, result.stderr
+    [line] = result.stderr.strip().splitlines()
+    assert line.startswith("evolution_node: error: "), line
+    assert message.format(task=reference) in line, line
+    assert not out.exists()

@@ -157,22 +157,29 @@ def test_two_resumes_at_once_on_one_run_one_is_refused(tmp_path: Path) -> None:
     # The first resume cannot finish before it is stopped: the second one surely
     # starts while the first writes.
     first = evolve(out, "--generations", "100000")
+    failure: AssertionError | None = None
     try:
         wait_for(
-            lambda: len(read_generations(out)["generation"]) >= 3,
+            lambda: len(read_generations(out)["generation"]) >= 3
+            or first.poll() is not None,
             "the first resume's generations",
         )
+        assert first.poll() is None, "the first resume ended before the second began"
         second = evolve(out, "--generations", "100000")
         err = stopped(second, 300)
-        assert second.returncode == 2
+        assert second.returncode == 2, err
         assert err.strip() == (
             f"sdbc-evolve: error: {out} is being written by another process "
             f"(pid {first.pid} on {socket.gethostname()}); wait for it to end, or "
             "choose another output directory"
         )
+    except AssertionError as error:
+        failure = error
     finally:
         first.send_signal(signal.SIGINT)
         first_err = stopped(first, 300)
+    # Whatever failed, what the first resume said comes with it.
+    assert failure is None, f"{failure}\nthe first resume said: {first_err[-4000:]}"
     assert first.returncode == 130, first_err
     done = read_generations(out)["generation"].tolist()
     assert done == list(range(len(done)))  # every generation once, in order
@@ -181,3 +188,51 @@ def test_two_resumes_at_once_on_one_run_one_is_refused(tmp_path: Path) -> None:
     again.communicate(timeout=300)
     assert again.returncode == 0
     assert read_generations(out)["generation"].tolist() == list(range(len(done) + 1))
+
+
+def test_a_second_writer_is_refused_before_any_trial_of_the_checks(
+    tmp_path: Path,
+) -> None:
+    # The probe trial of a task that breaks the contract would refuse the run;
+    # a run another process holds is refused first (no trial: it is told at
+    # once, whatever a trial costs), for --resume and for a new run alike.
+    broken = Path(__file__).resolve().parent / "boundary_tasks.py"
+    config = tmp_path / "broken.yaml"
+    config.write_text(
+        TINY_RUN_YAML.replace("task: gate_escape", f"task: {broken}:NegativeFitness")
+    )
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.yaml").write_text(config.read_text())
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+        busy = f"{out} is being written by another process (pid {holder.pid} on"
+        for argv in (
+            ["--resume", "--task", f"{broken}:NegativeFitness"],
+            ["--config", str(config)],
+        ):
+            done = subprocess.run(
+                [sys.executable, "-m", "sdbc_evolution.run.cli", *argv]
+                + ["--out", str(out), "--workers", "1", "--quiet", "--no-gif"],
+                capture_output=True,
+                text=True,
+                timeout=300,
+            )
+            assert done.returncode == 2, done.stderr
+            assert done.stderr.startswith(f"sdbc-evolve: error: {busy}"), done.stderr
+    finally:
+        holder.send_signal(signal.SIGKILL)
+        holder.wait()
+    # The lock gone, the same command meets the probe.
+    done = subprocess.run(
+        [sys.executable, "-m", "sdbc_evolution.run.cli", "--config", str(config)]
+        + ["--out", str(out), "--workers", "1", "--quiet", "--no-gif"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "a first trial: task" in done.stderr, done.stderr

@@ -1,9 +1,10 @@
 """``sdbc-study run`` at the boundaries: a real full disk (a small tmpfs) is one
 line and exit 2 with the study's own way to continue, in process and with
 worker processes alike, and the same command then finishes the study; the run
-lock's note on a full disk names its file; a damaged finished run is run
-again; a run another session finished is not counted as this one's; a digest
-opens nothing outside its folder."""
+lock's note on a full disk names its file; the memory check counts the runs
+side by side; a damaged finished run is run again; a run another session
+finished is not counted as this one's; a digest opens nothing outside its
+folder."""
 
 from __future__ import annotations
 
@@ -58,6 +59,40 @@ def test_a_full_disk_under_a_study_is_one_line_then_the_same_command_continues(
     capsys.readouterr()
     assert study(argv) == 0
     assert "4 of 4 runs already finished" in capsys.readouterr().err
+
+
+def test_the_memory_check_counts_the_runs_that_go_side_by_side(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sdbc_evolution.run.evaluators import TaskInfo
+    from sdbc_evolution.run.experiment import task_spec
+    from sdbc_evolution.run.footprint import check_footprint, run_footprint
+    from sdbc_evolution.study.plan import study_plan
+    from study_helpers import tiny_preset
+
+    config = study_plan(tiny_preset(), tmp_path / "plan")[0].config
+    info = TaskInfo.of(task_spec(config))
+    one = run_footprint(config, info).total
+    two = run_footprint(config, info, runs=2).total
+    assert two > 2 * one  # two runs' memory, and a process for each
+    # Room for one run, not for two side by side.
+    monkeypatch.setattr(
+        "sdbc_evolution.run.footprint.available_memory", lambda: (one + two) // 2
+    )
+    check_footprint(config, info, runs=1)
+    preset = tmp_path / "tiny.yaml"
+    preset.write_text(yaml.safe_dump(TINY))
+    out = tmp_path / "study"
+    argv = ["run", "--preset", str(preset), "--out", str(out), "--quiet"]
+    assert study([*argv, "--workers", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert (
+        "sdbc-study: error: ga.population_size 6 x evaluation.trials 2 in 2 runs "
+        "side by side with 2 processes needs about" in err
+    ), err
+    assert err.endswith("fewer trials or fewer workers"), err
+    assert not out.exists()  # refused before the study directory
 
 
 def test_a_finished_run_with_a_damaged_row_is_not_counted_finished_but_run_again(

@@ -152,6 +152,9 @@ class LiveTrial:
         sdbc: (D,) its raw SDBC vector, built from the task state topic.
         behaviours: Its vector of every other characterisation asked for, by key,
             built from the task state topic too.
+        characterisation_names: The names of the task-specific
+            characterisation's dimensions, as the simulator gave them (it may
+            give none).
     """
 
     trial_id: int
@@ -161,6 +164,7 @@ class LiveTrial:
     length: int
     sdbc: np.ndarray
     behaviours: dict[str, np.ndarray] = field(default_factory=dict)
+    characterisation_names: tuple[str, ...] = ()
 
 
 class _TrialStream:
@@ -519,6 +523,7 @@ class GraphClient:
                     length=answer.length,
                     sdbc=stream.vector,
                     behaviours=stream.vectors,
+                    characterisation_names=tuple(answer.characterisation_names),
                 )
             problem = stream.error or (
                 f"{stream.steps} task state messages for {answer.length} steps"

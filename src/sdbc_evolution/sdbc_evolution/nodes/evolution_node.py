@@ -26,6 +26,12 @@ needs the ``robots`` and ``genome_length`` parameters, runs ``live`` only, and
 learns the length of the task-specific characterisation and the names of the SDBC
 dimensions from a first trial (genome all zeros, seed 0) before the run starts.
 
+Before the run directory exists, the node makes ``sdbc-evolve``'s checks
+(:func:`~sdbc_evolution.run.request.check_before_run`: the task's settings, the
+memory, one trial in process whose values must keep to the contract), so a
+task that breaks it is a bad parameter (exit status 2) and leaves nothing; the
+first trial of another system's task is checked the same way.
+
 The current best can be watched live: the ``replay_best`` service (std_srvs/Trigger)
 runs it once on the graph (controllers and simulator), and the ``replay_best``
 parameter does so after every generation.
@@ -72,6 +78,7 @@ from sdbc_sim.tasks import available_tasks, find_task
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
+from sdbc_evolution.characterise.evaluation import SDBC, TASK
 from sdbc_evolution.characterise.sdbc import sdbc_dimension_names
 from sdbc_evolution.graph.client import (
     GraphClient,
@@ -82,9 +89,21 @@ from sdbc_evolution.graph.client import (
 from sdbc_evolution.graph.live_evaluator import LiveEvaluator
 from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import ConfigError, ExperimentConfig
-from sdbc_evolution.run.evaluators import Evaluator, TaskInfo, make_evaluator
+from sdbc_evolution.run.evaluators import (
+    Evaluation,
+    Evaluator,
+    TaskInfo,
+    check_first_trial,
+    make_evaluator,
+)
 from sdbc_evolution.run.experiment import Experiment, task_spec
-from sdbc_evolution.run.request import ConfigRequest, default_out, resolve_config
+from sdbc_evolution.run.processes import available_cores
+from sdbc_evolution.run.request import (
+    ConfigRequest,
+    check_before_run,
+    default_out,
+    resolve_config,
+)
 from sdbc_evolution.run.results import GenerationRecord
 from sdbc_msgs.msg import GenerationStats
 
@@ -202,6 +221,14 @@ class EvolutionNode(CheckedNode):
         self.workers = workers or None
         self.spec = task_spec(config)
         self.task = self._build_task()
+        self.info: TaskInfo | None = None
+        if self.task is not None:
+            # sdbc-evolve's checks, before a run directory exists: the memory
+            # (live: the trials are the graph's), a first trial in process.
+            local = available_cores() if self.workers is None else self.workers
+            self.info = check_before_run(
+                config, 1 if self.evaluator_name == "live" else local
+            )
         self.stop = threading.Event()
         self.finished = threading.Event()
         self.complete = False  # every generation done (not only stopped)
@@ -296,12 +323,22 @@ class EvolutionNode(CheckedNode):
     def task_info(self, evaluator: Evaluator) -> TaskInfo:
         """The task's sizes and SDBC names: from the task, or for another system's
         task from a first trial on the live graph."""
-        if self.task is not None:
-            return TaskInfo.of(self.spec)
+        if self.info is not None:
+            return self.info
         client = self.graph_client()
         with client.lock:
             client.set_genome(np.zeros(self.genome_length))
             trial = client.run_trial(0)
+        # What probe_task checks of this project's tasks, before the run exists.
+        check_first_trial(
+            Evaluation(
+                fitness=np.array([trial.fitness]),
+                trial_fitness=np.array([[trial.fitness]]),
+                behaviours={TASK: trial.characterisation[None], SDBC: trial.sdbc[None]},
+            ),
+            self.spec.name,
+            self.spec.fitness_range,
+        )
         # A declared treatment's SDBC options name their dimensions from the task
         # description, which the first trial's messages taught the client.
         declared = check_live_characterisations(self.spec.characterisations)

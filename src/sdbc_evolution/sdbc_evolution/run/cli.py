@@ -30,25 +30,23 @@ from pathlib import Path
 import numpy as np
 
 from sdbc_evolution.run.checkpoint import CheckpointError
-from sdbc_evolution.run.config import PHYSICS_MODELS, ConfigError, check_task_config
+from sdbc_evolution.run.config import PHYSICS_MODELS, ConfigError, ExperimentConfig
 from sdbc_evolution.run.evaluators import (
     SchedulerLost,
     SchedulerUnreachable,
-    TaskInfo,
     ValuesOutOfRange,
     add_evaluator_arguments,
     check_evaluator_arguments,
     make_evaluator,
-    probe_task,
     quiet_dask_logging,
 )
 from sdbc_evolution.run.experiment import Experiment, ExperimentError, task_spec
-from sdbc_evolution.run.footprint import check_footprint
-from sdbc_evolution.run.lock import RunBusy
+from sdbc_evolution.run.lock import RunBusy, RunLock
 from sdbc_evolution.run.processes import available_cores
 from sdbc_evolution.run.request import (
     RESULTS_ROOT,
     ConfigRequest,
+    check_before_run,
     default_out,
     resolve_config,
 )
@@ -170,17 +168,33 @@ def _main(args: argparse.Namespace) -> int:
     try:
         check_evaluator_arguments(args)
         config = resolve_config(config_request(args))
-        # The task's own settings too, so that a bad one stops before any run.
-        check_task_config(config.task, config.task_config)
         out = args.out if args.out is not None else default_out(config)
         if out.exists() and not out.is_dir():
             raise ConfigError(f"--out {out}: a file, not a directory")
+    except (ConfigError, CheckpointError, ValueError) as error:
+        print(f"sdbc-evolve: error: {error}", file=sys.stderr)
+        return 2
+    # A run another process writes is refused first, before the checks below
+    # run a trial: a second writer learns it is one at once, however long the
+    # task's trial and the machine's load make those checks.
+    try:
+        lock = RunLock(out).acquire() if out.is_dir() else None
+    except RunBusy as error:
+        print(f"sdbc-evolve: error: {error}", file=sys.stderr)
+        return 2
+    try:
+        return _checked_main(args, config, out, lock)
+    finally:
+        if lock is not None:
+            lock.release()  # a no-op once the run took it and released it
+
+
+def _checked_main(
+    args: argparse.Namespace, config: ExperimentConfig, out: Path, lock: RunLock | None
+) -> int:
+    try:
         workers = 1 if args.scheduler is not None else args.workers
-        info = TaskInfo.of(task_spec(config))
-        check_footprint(
-            config, info, workers=available_cores() if workers is None else workers
-        )
-        probe_task(task_spec(config), info)
+        check_before_run(config, available_cores() if workers is None else workers)
         if args.scheduler is not None:
             quiet_dask_logging()
         evaluator = make_evaluator(
@@ -197,9 +211,9 @@ def _main(args: argparse.Namespace) -> int:
     with evaluator:
         try:
             if args.resume:
-                experiment = Experiment.resume(config, out, evaluator)
+                experiment = Experiment.resume(config, out, evaluator, lock=lock)
             else:
-                experiment = Experiment.create(config, out, evaluator)
+                experiment = Experiment.create(config, out, evaluator, lock=lock)
         except (CheckpointError, ExperimentError, RunBusy, ValueError) as error:
             print(f"sdbc-evolve: error: {error}", file=sys.stderr)
             return 2

@@ -57,7 +57,9 @@ __all__ = [
     "Evaluator",
     "TaskInfo",
     "TaskSpec",
+    "TaskFailed",
     "ValuesOutOfRange",
+    "check_first_trial",
     "check_values",
 ]
 
@@ -213,6 +215,14 @@ def evaluate_chunk(
     )
 
 
+FITNESS_RANGE = (0.0, 1.0)
+"""Where the contract of an outside simulator (docs/ros2.md, "Evolution through
+another simulator: the contract") puts every trial's fitness, and a task's
+(``sdbc_sim.task.Task.fitness_range``) unless it declares another."""
+CHARACTERISATION_RANGE = (0.0, 1.0)
+"""Where the contract puts every value of the task-specific characterisation."""
+
+
 class TaskFailed(ValueError):
     """A task that fails its first trial; the message says how."""
 
@@ -230,13 +240,28 @@ def probe_task(spec: TaskSpec, info: TaskInfo) -> None:
     genome = np.zeros((1, info.genome_length))
     try:
         evaluation = evaluate_chunk(spec, genome, np.zeros((1, 1), dtype=np.int64))
-        check_values(evaluation, spec.name, spec.fitness_range)
-    except ValuesOutOfRange as error:
-        raise TaskFailed(f"a first trial: {error}") from None
     except (ValueError, TypeError, IndexError, KeyError) as error:
         raise TaskFailed(
             f"task {spec.name!r} fails its first trial: {type(error).__name__}: {error}"
         ) from None
+    check_first_trial(evaluation, spec.name, spec.fitness_range)
+
+
+def check_first_trial(
+    evaluation: Evaluation,
+    task: str,
+    fitness_range: tuple[float, float] = FITNESS_RANGE,
+) -> None:
+    """:func:`check_values` of a trial run before the run directory exists (by
+    :func:`probe_task`, or on another system's simulator), said as such.
+
+    Raises:
+        TaskFailed: Naming the first bad value.
+    """
+    try:
+        check_values(evaluation, task, fitness_range)
+    except ValuesOutOfRange as error:
+        raise TaskFailed(f"a first trial: {error}") from None
 
 
 def chunk_bounds(n: int, chunks: int) -> list[tuple[int, int]]:
@@ -259,14 +284,6 @@ def _check_batch(
     if seeds.dtype != np.int64:
         raise ValueError(f"seeds must be int64, got {seeds.dtype}")
     return genomes, seeds
-
-
-FITNESS_RANGE = (0.0, 1.0)
-"""Where the contract of an outside simulator (docs/ros2.md, "Evolution through
-another simulator: the contract") puts every trial's fitness, and a task's
-(``sdbc_sim.task.Task.fitness_range``) unless it declares another."""
-CHARACTERISATION_RANGE = (0.0, 1.0)
-"""Where the contract puts every value of the task-specific characterisation."""
 
 
 class ValuesOutOfRange(ValueError):
@@ -303,13 +320,10 @@ def check_values(
         checks.append((f"characterisation {key!r}", values, bounds))
     for label, values, bounds in checks:
         values = np.asarray(values, dtype=np.float64)
-        bad = ~np.isfinite(values)
-        if bounds is not None:
-            bad |= (values < bounds[0]) | (values > bounds[1])
-        if not bad.any():
+        outside = first_outside(values, bounds)
+        if outside is None:
             continue
-        where = tuple(int(i) for i in np.argwhere(bad)[0])
-        allowed = "finite" if bounds is None else f"in [{bounds[0]:g}, {bounds[1]:g}]"
+        where, count = outside
         position = (
             f"genome {where[0]}, trial {where[1]}"
             if label == "trial fitness"
@@ -317,9 +331,30 @@ def check_values(
         )
         raise ValuesOutOfRange(
             f"task {task!r} returned {label} {float(values[where])!r} at {position} "
-            f"({int(bad.sum())} of {values.size} values), the contract says "
-            f"{allowed}: fix the task or simulator (docs/limits.md), then resume"
+            f"({count} of {values.size} values), the contract says "
+            f"{allowed(bounds)}: fix the task or simulator (docs/limits.md), then "
+            "resume"
         )
+
+
+def first_outside(
+    values: np.ndarray, bounds: tuple[float, float] | None
+) -> tuple[tuple[int, ...], int] | None:
+    """Where the first value of ``values`` that is not finite or outside
+    ``bounds`` (None: finite is enough) is, and how many such values there are;
+    None if there are none."""
+    values = np.asarray(values, dtype=np.float64)
+    bad = ~np.isfinite(values)
+    if bounds is not None:
+        bad |= (values < bounds[0]) | (values > bounds[1])
+    if not bad.any():
+        return None
+    return tuple(int(i) for i in np.argwhere(bad)[0]), int(bad.sum())
+
+
+def allowed(bounds: tuple[float, float] | None) -> str:
+    """What ``bounds`` allow, in words: ``in [0, 1]``, or ``finite`` for None."""
+    return "finite" if bounds is None else f"in [{bounds[0]:g}, {bounds[1]:g}]"
 
 
 class Evaluator(ABC):

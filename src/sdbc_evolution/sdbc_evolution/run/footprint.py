@@ -17,7 +17,10 @@ The estimate is deliberately simple and on the high side:
   the seeds and per-trial fitness (N x T), characterisations and SDBC vectors
   (N x (C + D), a few times), and the novelty archive;
 - ``WORKER_BYTES`` per local worker process (:mod:`sdbc_sim.limits`): a pool of
-  W workers starts min(W, N) processes, one chunk of individuals each.
+  W workers starts min(W, N) processes, one chunk of individuals each;
+- runs side by side (``sdbc-study run --workers R``: R runs at once, each in a
+  process of its own evaluating in process): R times a run's trials and arrays,
+  and ``WORKER_BYTES`` for each run's process.
 """
 
 from __future__ import annotations
@@ -63,27 +66,29 @@ class Footprint:
         return self.trials + self.arrays + self.workers
 
 
-def worker_processes(config: ExperimentConfig, workers: int) -> int:
-    """Processes a local pool of ``workers`` starts for ``config``: one per
-    chunk, and a batch is cut into at most one chunk per individual; one
-    worker runs in process."""
-    return 0 if workers <= 1 else min(workers, config.ga.population_size)
+def worker_processes(config: ExperimentConfig, workers: int, runs: int = 1) -> int:
+    """Processes ``runs`` runs of ``config`` start side by side, each with a local
+    pool of ``workers``: a pool starts one process per chunk, and a batch is cut
+    into at most one chunk per individual; one worker runs in process. More than
+    one run: each run in a process of its own too."""
+    pool = 0 if workers <= 1 else min(workers, config.ga.population_size)
+    return runs * pool + (runs if runs > 1 else 0)
 
 
 def run_footprint(
-    config: ExperimentConfig, info: TaskInfo, workers: int = 1
+    config: ExperimentConfig, info: TaskInfo, workers: int = 1, runs: int = 1
 ) -> Footprint:
     """The peak memory of a generation of ``config`` on the task ``info`` with
     ``workers`` local worker processes (1: in process; a Dask cluster's workers
-    are not on this machine)."""
+    are not on this machine), for ``runs`` such runs side by side."""
     n, t = config.ga.population_size, config.evaluation.trials
     w, c, d = info.genome_length, info.characterisation_size, len(info.sdbc_names)
     per_individual = 8 * (w + 2 * t + c + d)
     archive = config.novelty.archive_size * 8 * (max(c, d) + 2)
     return Footprint(
-        trials=n * t * TRIAL_BYTES,
-        arrays=COPIES * n * per_individual + archive,
-        workers=worker_processes(config, workers) * WORKER_BYTES,
+        trials=runs * n * t * TRIAL_BYTES,
+        arrays=runs * (COPIES * n * per_individual + archive),
+        workers=worker_processes(config, workers, runs) * WORKER_BYTES,
     )
 
 
@@ -103,26 +108,31 @@ def available_memory() -> int | None:
         return None
 
 
-def check_footprint(config: ExperimentConfig, info: TaskInfo, workers: int = 1) -> None:
+def check_footprint(
+    config: ExperimentConfig, info: TaskInfo, workers: int = 1, runs: int = 1
+) -> None:
     """Refuses a run whose estimated peak memory exceeds what is available.
 
     Args:
-        workers: Local worker processes (1: in process).
+        workers: Local worker processes of a run (1: in process).
+        runs: Runs of ``config`` side by side (a study's ``--workers``).
 
     Raises:
-        FootprintError: Naming the population, the trials, the workers, the
-            estimate and the memory available.
+        FootprintError: Naming the population, the trials, the runs side by side,
+            the workers, the estimate and the memory available.
     """
-    footprint = run_footprint(config, info, workers)
+    footprint = run_footprint(config, info, workers, runs)
     need = footprint.total
     have = available_memory()
     if have is None or need <= have:
         return
-    processes = worker_processes(config, workers)
+    processes = worker_processes(config, workers, runs)
     raise FootprintError(
         f"ga.population_size {config.ga.population_size} x evaluation.trials "
         f"{config.evaluation.trials}"
-        + (f" with {processes} worker processes" if processes else "")
+        + (f" in {runs} runs side by side" if runs > 1 else "")
+        + (f" with {processes} processes" if runs > 1 else "")
+        + (f" with {processes} worker processes" if processes and runs == 1 else "")
         + f" needs about {need / GIB:.1f} GiB of memory at once, only "
         f"{have / GIB:.1f} GiB available: choose a smaller population"
         + (", fewer trials or fewer workers" if processes else " or fewer trials")

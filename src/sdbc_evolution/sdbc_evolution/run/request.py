@@ -5,7 +5,8 @@
 configuration file or the quick-start one (or, when resuming, the run's own), with
 some settings overridden. Each fills a :class:`ConfigRequest` from its own inputs
 (flags, ROS parameters) and :func:`resolve_config` turns it into the run's
-:class:`~sdbc_evolution.run.config.ExperimentConfig`.
+:class:`~sdbc_evolution.run.config.ExperimentConfig`; :func:`check_before_run`
+then makes the checks both make before a run directory exists.
 """
 
 from __future__ import annotations
@@ -23,10 +24,14 @@ from sdbc_evolution.run.checkpoint import CheckpointError
 from sdbc_evolution.run.config import (
     ConfigError,
     ExperimentConfig,
+    check_task_config,
     load_config,
     load_treatment,
     quickstart_config,
 )
+from sdbc_evolution.run.evaluators import TaskInfo, probe_task
+from sdbc_evolution.run.experiment import task_spec
+from sdbc_evolution.run.footprint import check_footprint
 from sdbc_evolution.run.results import CONFIG_FILE
 
 RESULTS_ROOT = Path("results")
@@ -116,6 +121,30 @@ def resolve_config(request: ConfigRequest) -> ExperimentConfig:
         return config.replace(**changes).resolved()
     except (TypeError, ValueError) as error:
         raise ConfigError(str(error)) from None
+
+
+def check_before_run(config: ExperimentConfig, workers: int = 1) -> TaskInfo:
+    """What every front end checks of a resolved configuration of this project's
+    engine before a run directory exists: the task's own settings, the memory
+    the run needs with ``workers`` local worker processes
+    (:func:`~sdbc_evolution.run.footprint.check_footprint`), and one trial in
+    this process (:func:`~sdbc_evolution.run.evaluators.probe_task`: values in
+    the contract's ranges, task states that fit the description).
+
+    Returns:
+        The task's sizes and dimension names.
+
+    Raises:
+        ConfigError: A bad task setting.
+        ValueError: Too little memory, or a task that fails its first trial;
+            the message says which.
+    """
+    check_task_config(config.task, config.task_config)
+    spec = task_spec(config)
+    info = TaskInfo.of(spec)
+    check_footprint(config, info, workers=workers)
+    probe_task(spec, info)
+    return info
 
 
 def _check_named_code(task: str, given: str | None, where: Path) -> None:

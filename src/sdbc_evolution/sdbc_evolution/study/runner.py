@@ -230,8 +230,14 @@ def run_study(
                 f"{runs} shards"
             )
     for spec in {spec.task: spec for spec in plan}.values():
-        # Runs of a task differ in seed and treatment only: one check per task.
-        check_footprint(spec.config, TaskInfo.of(task_spec(spec.config)))
+        # Runs of a task differ in seed and treatment only: one check per task,
+        # for as many of its runs side by side as will run at once.
+        runs = sum(s.task == spec.task for s in plan)
+        check_footprint(
+            spec.config,
+            TaskInfo.of(task_spec(spec.config)),
+            runs=min(runs, execution.concurrent_runs),
+        )
     if execution.scheduler is not None:
         # An unreachable scheduler fails here, before anything is written.
         make_evaluator(
