@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from sdbc_sim.arena import WallRays, square_walls
+from sdbc_sim.arena import WallRays, speed_and_turn, square_walls
 from sdbc_sim.sensors import normalised_reading, ray_segment_distance
 from sdbc_sim.tasks import make_task
 
@@ -69,3 +69,19 @@ def test_compiled_wall_rays_equal_the_array_formulation(task: str | None) -> Non
     rays.read(*args, out=wide[..., 1 : 1 + rays.n_rays])
     np.testing.assert_array_equal(wide[..., 1 : 1 + rays.n_rays], want)
     assert np.isnan(wide[..., 0]).all() and np.isnan(wide[..., -1]).all()
+
+
+def test_compiled_speed_and_turn_equal_the_array_formulation() -> None:
+    """The drive's loop does the operations of its array form, NaN outputs and
+    outputs at the threshold included."""
+    rng = np.random.default_rng(5)
+    outputs = rng.uniform(0.0, 1.0, (37, 4, 3))
+    outputs[0, 0] = np.nan
+    outputs[1, 1, 2] = 0.5
+    outputs[2, 2, 0] = np.nan
+    for view in (outputs, outputs.transpose(1, 0, 2).copy().transpose(1, 0, 2)):
+        speed, turn = speed_and_turn(view, 1.3, 1.57, 0.5)
+        want_speed = np.where(view[..., 2] > 0.5, 0.0, view[..., 0] * 1.3)
+        want_turn = (2.0 * view[..., 1] - 1.0) * 1.57
+        assert np.array_equal(speed.view(np.int64), want_speed.view(np.int64))
+        assert np.array_equal(turn.view(np.int64), want_turn.view(np.int64))

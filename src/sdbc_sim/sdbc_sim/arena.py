@@ -165,10 +165,37 @@ def speed_and_turn(
     outputs: np.ndarray, max_speed: float, max_turn: float, stop_threshold: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The authors' three-output drive: speed o0 x ``max_speed``, 0 if
-    o2 > ``stop_threshold``; turn (2 o1 - 1) x ``max_turn``. Each (B, N)."""
-    speed = np.where(outputs[..., 2] > stop_threshold, 0.0, outputs[..., 0] * max_speed)
-    turn = (2.0 * outputs[..., 1] - 1.0) * max_turn
+    o2 > ``stop_threshold``; turn (2 o1 - 1) x ``max_turn``. Each (B, N).
+
+    One compiled pass over the robots rather than six array operations, each
+    robot's operations those of ``np.where(o2 > stop_threshold, 0.0, o0 *
+    max_speed)`` and ``(2.0 * o1 - 1.0) * max_turn`` in their order
+    (``tests/sdbc_sim/test_arena.py``)."""
+    shape = outputs.shape[:2]
+    speed = np.empty(shape)
+    turn = np.empty(shape)
+    _speed_and_turn(outputs, max_speed, max_turn, stop_threshold, speed, turn)
     return speed, turn
+
+
+@compiled(
+    "void(float64[:, :, :], float64, float64, float64, float64[:, ::1], "
+    "float64[:, ::1])"
+)
+def _speed_and_turn(
+    outputs: np.ndarray,
+    max_speed: float,
+    max_turn: float,
+    stop_threshold: float,
+    speed: np.ndarray,
+    turn: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """:func:`speed_and_turn` into ``speed`` and ``turn`` (B, N)."""
+    for t in range(outputs.shape[0]):
+        for i in range(outputs.shape[1]):
+            go = outputs[t, i, 0] * max_speed
+            speed[t, i] = 0.0 if outputs[t, i, 2] > stop_threshold else go
+            turn[t, i] = (2.0 * outputs[t, i, 1] - 1.0) * max_turn
 
 
 def draw_team(

@@ -49,10 +49,20 @@ SIDESTEP_SPEED = 0.5
 """A sidestep's speed as a fraction of the commanded one (the authors' code)."""
 
 
+def wall_boxes(walls: np.ndarray) -> np.ndarray:
+    """(P, 4) each wall's bounding box, x low, x high, y low, y high."""
+    ends = np.asarray(walls, dtype=np.float64).reshape(-1, 2, 2)
+    low, high = ends.min(axis=1), ends.max(axis=1)
+    return np.ascontiguousarray(
+        np.stack([low[:, 0], high[:, 0], low[:, 1], high[:, 1]], axis=1)
+    )
+
+
 def _blocked(
     state: np.ndarray,
     radii: np.ndarray,
     walls: np.ndarray,
+    boxes: np.ndarray,
     collides: np.ndarray,
     first: int,
     i: int,
@@ -61,9 +71,23 @@ def _blocked(
 ) -> bool:  # pragma: no cover - compiled into _move; tested through it
     """Whether body ``i`` of the trial whose rows start at ``first`` would
     overlap a wall or another colliding body of its trial with its centre at
-    (x, y); touching is allowed."""
+    (x, y); touching is allowed.
+
+    A wall whose bounding box (``boxes``, :func:`wall_boxes`) lies more than
+    the body's diameter away along an axis is skipped: its true distance then
+    exceeds twice the radius, and the rounding of ``segment_offset`` (a few
+    ulps of the coordinates) cannot bring its squared offset below the squared
+    radius, so the answer is the one the offset would give."""
     r = radii[i]
+    reach_wall = r + r
     for q in range(walls.shape[0]):
+        if (
+            x < boxes[q, 0] - reach_wall
+            or x > boxes[q, 1] + reach_wall
+            or y < boxes[q, 2] - reach_wall
+            or y > boxes[q, 3] + reach_wall
+        ):
+            continue
         ox, oy = segment_offset(x, y, walls, q)
         if ox * ox + oy * oy < r * r:
             return True
@@ -80,7 +104,7 @@ def _blocked(
 
 @compiled.compiled(
     "void(float64[:, ::1], float64[:, ::1], float64[::1], float64[:, :, ::1], "
-    "boolean[::1], intp, intp, intp, float64, float64)",
+    "float64[:, ::1], boolean[::1], intp, intp, intp, float64, float64)",
     calls=(_blocked, segment_offset),
 )
 def _move(
@@ -88,6 +112,7 @@ def _move(
     drive: np.ndarray,
     radii: np.ndarray,
     walls: np.ndarray,
+    boxes: np.ndarray,
     collides: np.ndarray,
     angle_column: int,
     x_column: int,
@@ -112,7 +137,7 @@ def _move(
         if (
             collides[row]
             and (dx != 0.0 or dy != 0.0)
-            and _blocked(state, radii, walls, collides, first, i, x + dx, y + dy)
+            and _blocked(state, radii, walls, boxes, collides, first, i, x + dx, y + dy)
         ):
             # A quarter turn to the left, then to the right, at reduced speed.
             sx = -dy * sidestep
@@ -122,7 +147,9 @@ def _move(
             for side in (1.0, -1.0):
                 to_x = x + side * sx
                 to_y = y + side * sy
-                if not _blocked(state, radii, walls, collides, first, i, to_x, to_y):
+                if not _blocked(
+                    state, radii, walls, boxes, collides, first, i, to_x, to_y
+                ):
                     dx = side * sx
                     dy = side * sy
                     break
@@ -173,6 +200,7 @@ class KinematicTrials:
         self.live = np.arange(n_trials)
         self._radii = np.ascontiguousarray(radii, dtype=np.float64)
         self._walls = np.ascontiguousarray(walls, dtype=np.float64).reshape(-1, 2, 2)
+        self._wall_boxes = wall_boxes(self._walls)
         self._state = np.zeros((n_trials * n_bodies, READ_WIDTH))
         self._state[:, 0:2] = np.asarray(position, dtype=np.float64).reshape(-1, 2)
         self._state[:, 2] = np.asarray(angle, dtype=np.float64).reshape(-1)
@@ -216,6 +244,7 @@ class KinematicTrials:
             np.ascontiguousarray(drive),
             self._radii,
             self._walls,
+            self._wall_boxes,
             self._collides,
             col.angle,
             col.x,

@@ -116,6 +116,7 @@ class TeamNetworks:
         self.b_hidden = np.ascontiguousarray(hidden[:, :, n_in].T)
         self.w_output = np.ascontiguousarray(output[:, :, :n_hid].transpose(2, 1, 0))
         self.b_output = np.ascontiguousarray(output[:, :, n_hid].T)
+        self._buffers: dict[int, np.ndarray] = {}
 
     def take(self, trials: np.ndarray) -> None:
         """Keeps only ``trials`` (index array), in that order."""
@@ -127,13 +128,47 @@ class TeamNetworks:
     def forward(self, x: np.ndarray) -> np.ndarray:
         """Outputs (B, N, O) in [0, 1] for inputs ``x`` (B, N, I)."""
         xt = np.ascontiguousarray(x.transpose(2, 1, 0))
+        if compiled.loaded():
+            return self._forward_compiled(xt)
         h = _layer(xt, self.w_hidden, self.b_hidden)
         o = _layer(h, self.w_output, self.b_output)
         return o.transpose(2, 1, 0)
 
+    def _forward_compiled(self, xt: np.ndarray) -> np.ndarray:
+        """:meth:`forward` in three compiled passes around numpy's ``exp``.
+
+        The passes do :func:`_layer`'s operations in its order: a layer's sums
+        are negated as ``sigmoid`` negates them, numpy takes their ``exp`` in
+        place (its own implementation, as a controller node's), and the next
+        pass adds 1 and takes the reciprocal as ``sigmoid`` does before using the
+        values, the last one writing the outputs robot-major. Between them, the
+        hidden and output values live in buffers kept across steps, so a step
+        allocates only its outputs.
+        """
+        n_robots, n_trials = xt.shape[1], xt.shape[2]
+        hidden = self._buffer(0, (self.shape.n_hidden, n_robots, n_trials))
+        output = self._buffer(1, (self.shape.n_outputs, n_robots, n_trials))
+        _negated_sums(xt, self.w_hidden, self.b_hidden, hidden, False)
+        np.exp(hidden, out=hidden)
+        _negated_sums(hidden, self.w_output, self.b_output, output, True)
+        np.exp(output, out=output)
+        out = np.empty((n_trials, n_robots, self.shape.n_outputs))
+        _logistic_robot_major(output, out)
+        return out
+
+    def _buffer(self, which: int, shape: tuple[int, int, int]) -> np.ndarray:
+        """The scratch array ``which`` (0 hidden, 1 output) of ``shape``, kept
+        until the batch's size changes."""
+        buf = self._buffers.get(which)
+        if buf is None or buf.shape != shape:
+            buf = self._buffers[which] = np.empty(shape)
+        return buf
+
 
 def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """sigma(b + sum_i w[i] x[i]), summed in index order.
+    """sigma(b + sum_i w[i] x[i]), summed in index order, with numpy (a process
+    without numba; :meth:`TeamNetworks._forward_compiled` does the same
+    operations in compiled passes).
 
     Args:
         x: (I, N, B) source unit values per robot.
@@ -143,10 +178,6 @@ def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
     Returns:
         (U, N, B) unit values.
     """
-    if compiled.loaded():
-        a = np.empty((w.shape[1], x.shape[1], x.shape[2]))
-        _weighted_sums(x, w, b, a)
-        return sigmoid(a)
     a = np.repeat(b[:, None, :], x.shape[1], axis=1)
     tmp = np.empty_like(a)
     for i in range(w.shape[0]):
@@ -156,13 +187,23 @@ def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @compiled.compiled(
-    "void(float64[:, :, ::1], float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1])"
+    "void(float64[:, :, ::1], float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1], "
+    "boolean)"
 )
-def _weighted_sums(
-    x: np.ndarray, w: np.ndarray, b: np.ndarray, out: np.ndarray
+def _negated_sums(
+    x: np.ndarray, w: np.ndarray, b: np.ndarray, out: np.ndarray, logistic: bool
 ) -> None:  # pragma: no cover - compiled; tested against the numpy form
-    """``out[u, n, t] = b[u, t] + w[0, u, t] x[0, n, t] + w[1, u, t] x[1, n, t]
-    + ...``, added in that order (the numpy form of :func:`_layer`)."""
+    """``out[u, n, t] = -(b[u, t] + w[0, u, t] x[0, n, t] + w[1, u, t] x[1, n, t]
+    + ...)``, added in that order (the numpy form of :func:`_layer`), then
+    negated (``sigmoid``'s first operation, exact) while the row is in cache.
+
+    With ``logistic``, ``x`` holds the previous layer's ``exp(-a)``: first the
+    rest of its ``sigmoid``, ``1 / (x + 1)`` in place (its addition and its
+    reciprocal)."""
+    if logistic:
+        flat = x.reshape(-1)
+        for k in range(flat.shape[0]):
+            flat[k] = 1.0 / (flat[k] + 1.0)
     n_trials = out.shape[2]
     for u in range(out.shape[0]):
         for n in range(out.shape[1]):
@@ -171,6 +212,20 @@ def _weighted_sums(
             for i in range(w.shape[0]):
                 for t in range(n_trials):
                     out[u, n, t] += w[i, u, t] * x[i, n, t]
+            for t in range(n_trials):
+                out[u, n, t] = -out[u, n, t]
+
+
+@compiled.compiled("void(float64[:, :, ::1], float64[:, :, ::1])")
+def _logistic_robot_major(
+    e: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled; tested against the numpy form
+    """The rest of ``sigmoid`` on the output layer's ``e = exp(-a)`` (U, N, B),
+    ``1 / (e + 1)``, written robot-major into ``out`` (B, N, U)."""
+    for u in range(e.shape[0]):
+        for n in range(e.shape[1]):
+            for t in range(e.shape[2]):
+                out[t, n, u] = 1.0 / (e[u, n, t] + 1.0)
 
 
 def forward(genome: np.ndarray, shape: NetworkShape, x: np.ndarray) -> np.ndarray:

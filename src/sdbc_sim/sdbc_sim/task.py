@@ -194,7 +194,26 @@ class BodyState:
         return out
 
 
-@compiled("void(float64[:, :, :], float64[:, :], float64[:, :, :], float64[:, :, ::1])")
+def kinematics_row(
+    position: np.ndarray,
+    angular_velocity: np.ndarray,
+    velocity: np.ndarray,
+    out: np.ndarray,
+    t: int,
+    i: int,
+) -> None:  # pragma: no cover - compiled into the loops that call it
+    """Body ``i`` of trial ``t`` of :func:`_kinematics`, a helper of the loops
+    that fill a task's attributes in one pass (gate escape's)."""
+    out[t, i, 0] = position[t, i, 0]
+    out[t, i, 1] = position[t, i, 1]
+    out[t, i, 2] = angular_velocity[t, i]
+    out[t, i, 3] = math.hypot(velocity[t, i, 0], velocity[t, i, 1])
+
+
+@compiled(
+    "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64[:, :, ::1])",
+    calls=(kinematics_row,),
+)
 def _kinematics(
     position: np.ndarray,
     angular_velocity: np.ndarray,
@@ -207,10 +226,7 @@ def _kinematics(
     library's ``hypot``, which numpy's ``np.hypot`` calls too."""
     for t in range(out.shape[0]):
         for i in range(out.shape[1]):
-            out[t, i, 0] = position[t, i, 0]
-            out[t, i, 1] = position[t, i, 1]
-            out[t, i, 2] = angular_velocity[t, i]
-            out[t, i, 3] = math.hypot(velocity[t, i, 0], velocity[t, i, 1])
+            kinematics_row(position, angular_velocity, velocity, out, t, i)
 
 
 @dataclass

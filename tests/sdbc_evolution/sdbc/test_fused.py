@@ -112,3 +112,28 @@ def test_non_finite_values_of_present_entities_propagate_alike() -> None:
         ),
     )
     both(PREDATOR_PREY, odd)
+
+
+@pytest.mark.parametrize("description", DESCRIPTIONS, ids=lambda d: d.name)
+def test_polygons_shared_by_every_trial(description: TaskDescription) -> None:
+    """Polygons with a batch axis of 1 (walls) take the loop's scalar path: the
+    same bits as the oracle, NaN and infinite centres included."""
+    rng = np.random.default_rng(11)
+    state = random_state(description, 130, rng, p_present=0.7)
+    groups = []
+    for group in state.groups:
+        if group.segments is not None:
+            group = GroupState(
+                group.present[:1],
+                group.attributes[:1],
+                segments=group.segments[:1].copy(),
+            )
+        elif group.centres is not None and group.centres.shape[0] > 1:
+            centres = group.centres.copy()
+            centres[0, 0, 0] = np.nan
+            centres[1, 0, 1] = np.inf
+            group = GroupState(
+                group.present, group.attributes, centres=centres, radii=group.radii
+            )
+        groups.append(group)
+    both(description, TaskState(1, state.active, tuple(groups)))

@@ -317,3 +317,36 @@ def test_compiled_sensor_and_rules_equal_the_array_formulation() -> None:
         np.testing.assert_array_equal(got_bodies.enabled, want_bodies.enabled)
     assert got.escaped.all(axis=1).any() and not got.escaped.all()
     assert (got.open_step >= 0).any() and (got.open_step < 0).any()
+
+
+def test_compiled_agent_attributes_equal_the_array_formulation() -> None:
+    """The Agent group's attributes in one pass: the kinematics, then "is
+    passing gate" by the array form's comparisons, NaN and the gate's edges
+    included."""
+    task = GateEscape()
+    rng = np.random.default_rng(3)
+    b, n = 50, task.config.n_robots
+    r = task.config.robot_radius
+    position = rng.uniform(-2.0 * r, 200.0, (b, n, 2))
+    position[:10, :, 0] = rng.uniform(-r, r, (10, n))
+    position[10:20, :, 1] = rng.uniform(
+        task.gate_low - 1.0, task.gate_high + 1.0, (10, n)
+    )
+    position[0, 0] = (r, task.gate_low)
+    position[0, 1] = (-r, task.gate_high)
+    position[0, 2] = (r, np.nan)
+    position[1, 0] = (0.0, (task.gate_low + task.gate_high) / 2.0)
+    bodies = BodyState.at_rest(position, rng.uniform(-np.pi, np.pi, (b, n)))
+    bodies.velocity[:] = rng.normal(size=(b, n, 2))
+    bodies.angular_velocity[:] = rng.normal(size=(b, n))
+    trials, _, _ = task.reset([np.random.default_rng(s) for s in range(b)])
+    agents = task.task_state(trials, bodies)[0].attributes
+    pos = bodies.position
+    want = bodies.kinematics(1)
+    want[..., 4] = (
+        (np.abs(pos[..., 0]) <= r)
+        & (pos[..., 1] > task.gate_low)
+        & (pos[..., 1] < task.gate_high)
+    )
+    assert np.array_equal(agents.view(np.int64), want.view(np.int64))
+    assert want[1, 0, 4] == 1.0 and want[0, 2, 4] == 0.0

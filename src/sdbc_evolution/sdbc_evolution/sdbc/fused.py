@@ -164,11 +164,41 @@ def disc_pair_total(
             add_term(out, b, p == 0, d, absent1[b], absent2[b])
 
 
+def shared_least(
+    px: np.ndarray,
+    py: np.ndarray,
+    ax: float,
+    ay: float,
+    abx: float,
+    aby: float,
+    inv: float,
+    first: bool,
+    least: np.ndarray,
+) -> None:
+    """One segment's step of :func:`disc_segment_total` for a segment shared by
+    every trial: the squared distance of each centre (``px``, ``py``) to it,
+    kept in ``least`` where smaller (the first segment's stored), with the
+    operations of the general path on the same values."""
+    for b in range(px.shape[0]):
+        dx = px[b] - ax
+        dy = py[b] - ay
+        t = (dx * abx + dy * aby) * inv
+        if t < 0.0:
+            t = 0.0
+        elif t > 1.0:
+            t = 1.0
+        dx = dx - t * abx
+        dy = dy - t * aby
+        d2 = dx * dx + dy * dy
+        if first or (not np.isnan(least[b]) and not least[b] <= d2):
+            least[b] = d2
+
+
 @compiled(
     "void(float64[:, ::1], float64[:, ::1], float64[:, ::1], boolean[:, ::1], "
     "float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], "
     "float64[:, :, ::1], boolean[:, ::1], int64[::1], int64[::1], float64[::1])",
-    calls=(batch_row, add_term),
+    calls=(batch_row, add_term, shared_least),
 )
 def disc_segment_total(
     cx: np.ndarray,
@@ -202,6 +232,9 @@ def disc_segment_total(
     spare = np.empty((8, n))
     spare_absent = np.empty((2, n), dtype=np.bool_)
     least = np.empty(n)
+    # Polygons shared by every trial (walls): their values as scalars rather
+    # than rows of copies, the same operations on the same values.
+    shared = sax.shape[2] == 1 and n > 1
     if disc.shape[0] == 0:
         out[:] = 0.0
     for p in range(disc.shape[0]):
@@ -210,6 +243,19 @@ def disc_segment_total(
         px = batch_row(cx, i, spare[0])
         py = batch_row(cy, i, spare[1])
         for q in range(sax.shape[0]):
+            if shared:
+                shared_least(
+                    px,
+                    py,
+                    sax[q, k, 0],
+                    say[q, k, 0],
+                    sabx[q, k, 0],
+                    saby[q, k, 0],
+                    inverse[q, k, 0],
+                    q == 0,
+                    least,
+                )
+                continue
             ax = batch_row(sax[q], k, spare[2])
             ay = batch_row(say[q], k, spare[3])
             abx = batch_row(sabx[q], k, spare[4])

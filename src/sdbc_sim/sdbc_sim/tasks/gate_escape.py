@@ -73,7 +73,7 @@ from sdbc_sim.settings import (
     check,
     settings,
 )
-from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
+from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays, kinematics_row
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
 _MAX_START_DRAWS = 100_000
@@ -354,13 +354,16 @@ class GateEscape(Task[GateEscapeTrials]):
     ) -> tuple[GroupState, ...]:
         c = self.config
         pos = bodies.position
-        passing = (
-            (np.abs(pos[..., 0]) <= c.robot_radius)
-            & (pos[..., 1] > self.gate_low)
-            & (pos[..., 1] < self.gate_high)
+        agents = np.empty((*bodies.angle.shape, 5))
+        _agent_attributes(
+            np.asarray(pos, dtype=np.float64),
+            np.asarray(bodies.angular_velocity, dtype=np.float64),
+            np.asarray(bodies.velocity, dtype=np.float64),
+            c.robot_radius,
+            self.gate_low,
+            self.gate_high,
+            agents,
         )
-        agents = bodies.kinematics(1)
-        agents[..., 4] = passing
         closing = (trials.open_step >= 0).astype(np.float64)[:, None, None]
         return (
             GroupState(
@@ -494,6 +497,33 @@ def _escape_rules(
             everyone = everyone and escaped[b, r]
         closed = open_step[b] >= 0 and step - open_step[b] >= closing_steps
         ends[b] = closed or everyone
+
+
+@compiled(
+    "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64, float64, "
+    "float64, float64[:, :, ::1])",
+    calls=(kinematics_row,),
+)
+def _agent_attributes(
+    position: np.ndarray,
+    angular_velocity: np.ndarray,
+    velocity: np.ndarray,
+    radius: float,
+    gate_low: float,
+    gate_high: float,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """The Agent group's attributes (B, N, 5) in one pass: the kinematics
+    (:meth:`~sdbc_sim.task.BodyState.kinematics`), then "is passing gate", 1
+    where ``|x| <= radius`` and ``gate_low < y < gate_high``, else 0 (the array
+    formulation's comparisons, ``tests/sdbc_sim/tasks/test_gate_escape.py``)."""
+    for t in range(out.shape[0]):
+        for i in range(out.shape[1]):
+            kinematics_row(position, angular_velocity, velocity, out, t, i)
+            x = position[t, i, 0]
+            y = position[t, i, 1]
+            passing = abs(x) <= radius and y > gate_low and y < gate_high
+            out[t, i, 4] = 1.0 if passing else 0.0
 
 
 TASK = GateEscape
