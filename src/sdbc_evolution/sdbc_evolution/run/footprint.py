@@ -127,12 +127,12 @@ def check_footprint(
     if have is None or need <= have:
         return
     processes = worker_processes(config, workers, runs)
+    kind = "processes" if runs > 1 else "worker processes"
     raise FootprintError(
         f"ga.population_size {config.ga.population_size} x evaluation.trials "
         f"{config.evaluation.trials}"
         + (f" in {runs} runs side by side" if runs > 1 else "")
-        + (f" with {processes} processes" if runs > 1 else "")
-        + (f" with {processes} worker processes" if processes and runs == 1 else "")
+        + (f" with {processes} {kind}" if processes else "")
         + f" needs about {need / GIB:.1f} GiB of memory at once, only "
         f"{have / GIB:.1f} GiB available: choose a smaller population"
         + (", fewer trials or fewer workers" if processes else " or fewer trials")
