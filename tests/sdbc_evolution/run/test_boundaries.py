@@ -36,7 +36,7 @@ def evaluation(fitness: float = 0.5, task: float = 0.5, sdbc: float = 3.0):
 
 
 def test_values_in_the_contract_pass() -> None:
-    check_values(evaluation(fitness=1.0, task=0.0, sdbc=-40.0), "t")
+    check_values(evaluation(fitness=1.0, task=0.0, sdbc=-40.0), TaskSpec("t"))
 
 
 @pytest.mark.parametrize(
@@ -51,7 +51,7 @@ def test_values_in_the_contract_pass() -> None:
 )
 def test_values_outside_the_contract_are_refused(values, message) -> None:
     with pytest.raises(ValuesOutOfRange, match=message):
-        check_values(evaluation(**values), "t")
+        check_values(evaluation(**values), TaskSpec("t"))
 
 
 def test_each_task_is_checked_against_its_own_fitness_range() -> None:
@@ -60,9 +60,9 @@ def test_each_task_is_checked_against_its_own_fitness_range() -> None:
     assert TaskSpec("predator_prey").fitness_range == (0.0, 2.0)
     assert TaskSpec("gate_escape").fitness_range == FITNESS_RANGE
     assert TaskSpec("an_outside_simulators_task").fitness_range == FITNESS_RANGE
-    check_values(evaluation(fitness=1.9), "predator_prey", (0.0, 2.0))
+    check_values(evaluation(fitness=1.9), TaskSpec("predator_prey"))
     with pytest.raises(ValuesOutOfRange, match=r"trial fitness 2.5 .* in \[0, 2\]"):
-        check_values(evaluation(fitness=2.5), "predator_prey", (0.0, 2.0))
+        check_values(evaluation(fitness=2.5), TaskSpec("predator_prey"))
 
 
 def test_a_predator_prey_capture_passes_the_value_check() -> None:
@@ -71,9 +71,10 @@ def test_a_predator_prey_capture_passes_the_value_check() -> None:
     genome = np.load(HERE / "predator_prey_capture.npy")
     result = evaluate_chunk(spec, genome, np.ones((1, 1), dtype=np.int64))
     assert result.trial_fitness[0, 0] > 1.0
-    check_values(result, spec.name, spec.fitness_range)
+    check_values(result, spec)
+    # The range every task had before it declared its own.
     with pytest.raises(ValuesOutOfRange):
-        check_values(result, spec.name)
+        check_values(result, TaskSpec("an_outside_simulators_task"))
 
 
 class OutsideAnswers(ToyEvaluator):

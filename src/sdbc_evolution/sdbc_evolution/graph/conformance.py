@@ -50,7 +50,7 @@ from sdbc_sim.tasks import find_task, make_task
 from sdbc_evolution.graph.client import GraphClient, GraphClientError, LiveTrial
 from sdbc_evolution.run.evaluators import (
     CHARACTERISATION_RANGE,
-    FITNESS_RANGE,
+    TaskSpec,
     allowed,
     first_outside,
 )
@@ -227,9 +227,7 @@ def check_ranges(subject: LiveSubject) -> str:
     if subject.trials is None:
         raise ContractBroken("no trials to check: the trials check did not pass")
     trials = subject.trials
-    fitness_range = (
-        FITNESS_RANGE if subject.task is None else subject.task.fitness_range
-    )
+    fitness_range = TaskSpec(subject.target.task).fitness_range
     sizes = {t.characterisation.shape[0] for _, _, t in trials}
     for g, seed, trial in trials:
         where = f"genome {g}, seed {seed}"

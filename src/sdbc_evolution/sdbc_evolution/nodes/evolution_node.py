@@ -336,8 +336,7 @@ class EvolutionNode(CheckedNode):
                 trial_fitness=np.array([[trial.fitness]]),
                 behaviours={TASK: trial.characterisation[None], SDBC: trial.sdbc[None]},
             ),
-            self.spec.name,
-            self.spec.fitness_range,
+            self.spec,
         )
         # A declared treatment's SDBC options name their dimensions from the task
         # description, which the first trial's messages taught the client.

@@ -244,14 +244,10 @@ def probe_task(spec: TaskSpec, info: TaskInfo) -> None:
         raise TaskFailed(
             f"task {spec.name!r} fails its first trial: {type(error).__name__}: {error}"
         ) from None
-    check_first_trial(evaluation, spec.name, spec.fitness_range)
+    check_first_trial(evaluation, spec)
 
 
-def check_first_trial(
-    evaluation: Evaluation,
-    task: str,
-    fitness_range: tuple[float, float] = FITNESS_RANGE,
-) -> None:
+def check_first_trial(evaluation: Evaluation, spec: TaskSpec) -> None:
     """:func:`check_values` of a trial run before the run directory exists (by
     :func:`probe_task`, or on another system's simulator), said as such.
 
@@ -259,7 +255,7 @@ def check_first_trial(
         TaskFailed: Naming the first bad value.
     """
     try:
-        check_values(evaluation, task, fitness_range)
+        check_values(evaluation, spec)
     except ValuesOutOfRange as error:
         raise TaskFailed(f"a first trial: {error}") from None
 
@@ -292,13 +288,9 @@ class ValuesOutOfRange(ValueError):
     intact. The message names the value, the genome and the trial."""
 
 
-def check_values(
-    evaluation: Evaluation,
-    task: str,
-    fitness_range: tuple[float, float] = FITNESS_RANGE,
-) -> None:
-    """Refuses an evaluation with a trial fitness outside ``fitness_range`` (the
-    task's, :attr:`TaskSpec.fitness_range`), a
+def check_values(evaluation: Evaluation, spec: TaskSpec) -> None:
+    """Refuses an evaluation of the task ``spec`` with a trial fitness outside the
+    task's range (:attr:`TaskSpec.fitness_range`), a
     task-specific characterisation value outside :data:`CHARACTERISATION_RANGE`,
     or a NaN or infinite value in any characterisation.
 
@@ -313,7 +305,7 @@ def check_values(
         ValuesOutOfRange: Naming the first bad value, where it is, and the task.
     """
     checks: list[tuple[str, np.ndarray, tuple[float, float] | None]] = [
-        ("trial fitness", evaluation.trial_fitness, fitness_range)
+        ("trial fitness", evaluation.trial_fitness, spec.fitness_range)
     ]
     for key, values in evaluation.behaviours.items():
         bounds = CHARACTERISATION_RANGE if key == TASK else None
@@ -330,7 +322,8 @@ def check_values(
             else f"genome {where[0]}, dimension {where[1]}"
         )
         raise ValuesOutOfRange(
-            f"task {task!r} returned {label} {float(values[where])!r} at {position} "
+            f"task {spec.name!r} returned {label} {float(values[where])!r} at "
+            f"{position} "
             f"({count} of {values.size} values), the contract says "
             f"{allowed(bounds)}: fix the task or simulator (docs/limits.md), then "
             "resume"
@@ -391,7 +384,7 @@ class Evaluator(ABC):
         genomes, seeds = _check_batch(genomes, seeds)
         bounds = chunk_bounds(genomes.shape[0], self.workers)
         evaluation = Evaluation.concatenate(self._run(genomes, seeds, bounds))
-        check_values(evaluation, self.spec.name, self.spec.fitness_range)
+        check_values(evaluation, self.spec)
         return evaluation
 
     @abstractmethod
