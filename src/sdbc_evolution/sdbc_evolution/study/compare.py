@@ -23,7 +23,7 @@ from sdbc_sim.yaml_input import YamlRefused, read_yaml
 
 from sdbc_evolution.study.claims import Verdict
 from sdbc_evolution.study.paper import task_title
-from sdbc_evolution.study.report import markdown_table
+from sdbc_evolution.study.report import markdown_cell, markdown_table
 
 CLAIMS_TABLE = Path("tables") / "claims.csv"
 COLUMNS = ("topic", "task", "claim", "paper", "ours", "p", "verdict")
@@ -155,10 +155,6 @@ def _counts(rows: Sequence[ClaimRow]) -> str:
     )
 
 
-def _cell(text: str) -> str:
-    return text.replace("|", "\\|")
-
-
 def comparison_page(
     before: Sequence[ClaimRow],
     after: Sequence[ClaimRow],
@@ -191,7 +187,7 @@ def comparison_page(
             ["claim", names[0], names[1], "why"],
             [
                 [
-                    _cell(x)
+                    markdown_cell(x)
                     for x in (
                         c.after.statement,
                         f"**{c.before.verdict.value}**: {c.before.ours}",

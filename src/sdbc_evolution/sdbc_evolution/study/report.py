@@ -75,6 +75,11 @@ def _minutes(seconds: float) -> str:
     return f"{seconds / 60:.1f} min"
 
 
+def markdown_cell(text: str) -> str:
+    """``text`` as a Markdown table cell: its ``|`` escaped."""
+    return text.replace("|", "\\|")
+
+
 def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
     """A Markdown table and the blank line after it."""
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]

@@ -43,7 +43,7 @@ from sdbc_evolution.study.compare import (
     verdict_counts,
 )
 from sdbc_evolution.study.paper import PAPER_TASKS, task_title
-from sdbc_evolution.study.report import markdown_table
+from sdbc_evolution.study.report import markdown_cell, markdown_table
 
 RULE_COLUMNS = ("p_holm", "A", "A_low", "A_high", "statistic")
 """Columns a claims table of today's rules has beside the earlier ones."""
@@ -231,10 +231,6 @@ def _cell(study: StudyClaims, statement: str, task: str) -> str:
     return f"{word}, {effect}" if effect else word
 
 
-def _escape(text: str) -> str:
-    return text.replace("|", "\\|")
-
-
 def verdicts_page(
     studies: Sequence[StudyClaims],
     causes: dict[str, Cause],
@@ -311,9 +307,9 @@ def verdicts_page(
                 else ""
             )
             rows.append(
-                [_escape(statement)]
-                + [_escape(_cell(s, statement, task)) for s in studies]
-                + [_escape(cause)]
+                [markdown_cell(statement)]
+                + [markdown_cell(_cell(s, statement, task)) for s in studies]
+                + [markdown_cell(cause)]
             )
         lines += markdown_table(["claim", *names, "cause of a disagreement"], rows)
     return "\n".join(lines), found
