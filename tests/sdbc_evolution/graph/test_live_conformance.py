@@ -127,12 +127,13 @@ def test_this_projects_graph_keeps_to_the_contract(
         .replace('task_config: "{}"', 'task_config: "{max_steps: 60}"')
     )
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    said = tmp_path / "launcher.txt"
     launcher = subprocess.Popen(
         [sys.executable, "-m", "sdbc_evolution.graph.launch", str(graph)]
         + ["--log-dir", str(tmp_path / "logs")],
         env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+        stdout=said.open("w"),
+        stderr=subprocess.STDOUT,
     )
     try:
         done = conformance(
@@ -145,7 +146,7 @@ def test_this_projects_graph_keeps_to_the_contract(
         except subprocess.TimeoutExpired:
             launcher.kill()
             launcher.wait()
-    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.returncode == 0, done.stdout + done.stderr + said.read_text()
     assert "4/4 checks passed for gate_escape" in done.stdout
     assert "4 trials of 60-60 steps" in done.stdout, done.stdout
     assert "4 characterisation values each" in done.stdout, done.stdout

@@ -149,6 +149,37 @@ def test_a_graph_is_refused_where_another_graph_offers_its_simulator(
     assert "trial seed 3: fitness" in elsewhere.stdout
 
 
+def test_a_client_waiting_for_the_simulator_does_not_block_its_graph(
+    tmp_path, run_graph, client_node
+):
+    """A client of run_trial (an evolution node or a conformance check started
+    before the graph) lists the service's name in the domain, but serves nothing:
+    the launcher starts the graph it is waiting for."""
+    from sdbc_evolution.graph.client import GraphClient
+    from sdbc_evolution.graph.graph_file import trial_graph
+    from sdbc_sim.tasks import make_task
+
+    task = make_task("gate_escape", max_steps=40)
+    GraphClient(
+        client_node, task, "gate_escape", {"max_steps": 40}, namespace="/team_c"
+    )
+    path = tmp_path / "graph.yaml"
+    path.write_text(
+        yaml.safe_dump(
+            trial_graph(
+                "gate_escape",
+                _genome(task, 0),
+                {"max_steps": 40},
+                launcher={"robots_per_process": 4},
+                nodes={"simulator": {"discovery_timeout": 30.0}},
+            )
+        )
+    )
+    done = run_graph(str(path), "--namespace", "team_c", "--trial", "3")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "trial seed 3: fitness" in done.stdout
+
+
 EXPERIMENT = {
     "task": "gate_escape",
     "task_config": {"max_steps": 40},
