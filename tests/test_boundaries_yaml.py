@@ -4,6 +4,7 @@ sdbc_sim.limits, and every refusal echoes its value as a short excerpt."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import tracemalloc
 from pathlib import Path
@@ -18,6 +19,7 @@ from sdbc_evolution.run.config import (
 from sdbc_evolution.study.presets import PresetError, load_preset_file
 from sdbc_sim.limits import CONFIG_FILE_BYTES, EXCERPT_CHARS, excerpt
 from sdbc_sim.settings import SettingsError
+from sdbc_sim.task_state_msgs import LIMITS, TaskStateLimits
 from sdbc_sim.yaml_input import YamlRefused, parse_yaml
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -166,3 +168,32 @@ def test_the_limits_are_stated_in_docs_limits() -> None:
     names = [n for n in vars(limits) if n.isupper() and not n.startswith("_")]
     missing = [n for n in names if n not in text]
     assert names and not missing, missing
+
+
+def undocumented_message_limits(text: str, limits: TaskStateLimits) -> list[str]:
+    """The fields of a ``TaskStateLimits`` that ``text`` (docs/limits.md) has no
+    table row of, as ``| `limits.NAME` | VALUE |``, with the field's value."""
+    return [
+        f"limits.{field.name} = {getattr(limits, field.name)}"
+        for field in dataclasses.fields(limits)
+        if not re.search(
+            rf"^\| `limits\.{field.name}` \| {getattr(limits, field.name)} \|",
+            text,
+            flags=re.MULTILINE,
+        )
+    ]
+
+
+def test_the_message_limits_are_stated_in_docs_limits() -> None:
+    text = (ROOT / "docs" / "limits.md").read_text()
+    assert TaskStateLimits() == LIMITS  # the defaults are the limits in force
+    assert undocumented_message_limits(text, LIMITS) == []
+    # A limit added without its row, or a row left at an old value, is caught.
+    more = dataclasses.make_dataclass(
+        "More", [("bags", int, 7)], bases=(TaskStateLimits,), frozen=True
+    )
+    assert undocumented_message_limits(text, more()) == ["limits.bags = 7"]
+    changed = dataclasses.replace(LIMITS, entities=LIMITS.entities + 1)
+    assert undocumented_message_limits(text, changed) == [
+        f"limits.entities = {LIMITS.entities + 1}"
+    ]
