@@ -167,6 +167,50 @@ def test_combined_evaluation_overrides_all_hold() -> None:
     assert (config.evaluation.trials, config.evaluation.physics) == (4, "kinematic")
 
 
+def test_trials_and_physics_combined_on_the_command_line_both_reach_the_run(
+    tmp_path: Path,
+) -> None:
+    # The file says 2 trials: were each override applied to the file's evaluation
+    # section, --physics (applied last) would bring the 2 back.
+    from sdbc_evolution.run.config import load_config
+    from sdbc_evolution.run.results import CONFIG_FILE
+
+    out = tmp_path / "run"
+    argv = ["--config", str(tiny_config(tmp_path, "gate_escape")), "--out", str(out),
+            "--trials", "3", "--physics", "kinematic", "--workers", "1",
+            "--quiet", "--no-gif"]  # fmt: skip
+    assert main(argv) == 0
+    evaluation = load_config(out / CONFIG_FILE).evaluation
+    assert (evaluation.trials, evaluation.physics) == (3, "kinematic")
+
+
+def test_a_config_of_500_nested_lists_is_one_line_naming_the_depth_limit(
+    tmp_path: Path,
+) -> None:
+    # As a user runs it: a RecursionError would print thousands of lines.
+    import os
+    import subprocess
+    import sys
+
+    from sdbc_sim.limits import CONFIG_DEPTH
+
+    config = tmp_path / "nested.yaml"
+    config.write_text("[" * 500 + "]" * 500 + "\n")
+    assert config.stat().st_size <= 1024
+    out = tmp_path / "run"
+    done = subprocess.run(
+        [sys.executable, "-m", "sdbc_evolution.run.cli", "--config", str(config),
+         "--out", str(out), "--quiet", "--no-gif"],
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    err = done.stderr.strip()
+    assert done.returncode == 2, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert f"nested deeper than {CONFIG_DEPTH} levels (CONFIG_DEPTH)" in err
+    assert not out.exists()
+
+
 def test_a_novelty_k_no_generation_can_reach_is_refused_and_a_large_one_noted(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
