@@ -171,3 +171,63 @@ def test_a_graph_start_removes_what_killed_dds_processes_left(tmp_path):
     assert remaining == set()
     # Stopped while still starting up, but by SIGINT, not SIGKILL.
     assert -signal.SIGKILL not in codes.values(), codes
+
+
+STOP_AT_ONCE = """
+import json, sys
+from pathlib import Path
+from sdbc_evolution.graph.graph_file import load_graph_file
+from sdbc_evolution.graph.processes import ProcessGraph, child_environment
+folder = Path(sys.argv[1])
+graph = ProcessGraph.from_graph_file(
+    load_graph_file(folder / "graph.yaml"), folder, log_dir=folder / "logs",
+    env=child_environment(),
+)
+graph.start()
+print(json.dumps(graph.stop()))
+"""
+
+
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def test_a_graph_started_from_a_background_job_still_stops_by_sigint(tmp_path):
+    """A program a non-interactive shell starts with `&` ignores SIGINT, and so
+    would the nodes its launcher starts: a stop in their first moments, before
+    a node installs its own handler, was lost, and every node SIGKILLed after
+    the grace time (seen under `nohup .ci/run &`)."""
+    import json
+
+    _graph_file(tmp_path)
+    env = {
+        **os.environ,
+        "ROS_HOME": str(tmp_path / "ros_home"),
+        "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", STOP_AT_ONCE, str(tmp_path)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=_ignore_sigint,
+    )
+    assert done.returncode == 0, done.stderr
+    codes = json.loads(done.stdout)
+    assert len(codes) == 5
+    assert -signal.SIGKILL not in codes.values(), codes
+
+
+def test_ignores_sigint_reads_the_process_disposition():
+    from sdbc_evolution.graph.processes import ignores_sigint
+
+    for preexec, expected in ((_ignore_sigint, True), (None, False)):
+        child = subprocess.Popen(
+            ["sleep", "30"], preexec_fn=preexec, stdout=subprocess.DEVNULL
+        )
+        try:
+            assert ignores_sigint(child.pid) is expected
+        finally:
+            child.kill()
+            child.wait()

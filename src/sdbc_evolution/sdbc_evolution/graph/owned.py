@@ -26,13 +26,13 @@ import threading
 import time
 from collections.abc import Sequence
 
-from sdbc_evolution.run.processes import ORPHAN_EXIT, OWNER_POLL_SECONDS
-
 
 def watch_launcher(owner: int, grace: float) -> None:
     """Stops this process when the process ``owner`` ends: SIGINT at once, an
     exit with :data:`~sdbc_evolution.run.processes.ORPHAN_EXIT` ``grace``
     seconds later if it is still running."""
+    from sdbc_evolution.run.processes import ORPHAN_EXIT, OWNER_POLL_SECONDS
+
     try:
         fd: int | None = os.pidfd_open(owner)
     except ProcessLookupError:
@@ -59,13 +59,25 @@ def watch_launcher(owner: int, grace: float) -> None:
 def main(argv: Sequence[str] | None = None) -> None:
     """Runs the module named in ``argv`` (``OWNER GRACE MODULE [ARGS...]``) as
     ``__main__``, stopped when the process ``OWNER`` ends."""
+    # SIGINT is how the launcher (and the watcher) stops a node, so a node must
+    # not inherit it ignored, as every program started by a non-interactive
+    # shell's `&` does: a stop in its first seconds would be lost, and the node
+    # killed after the grace time, its bag unclosed and its DDS files left. First
+    # thing, before any import: the launcher holds a stop back until this is done
+    # (graph/processes.py).
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) < 3:
         sys.exit("usage: python -m sdbc_evolution.graph.owned OWNER GRACE MODULE ...")
     owner, grace, module, rest = int(args[0]), float(args[1]), args[2], args[3:]
     watch_launcher(owner, grace)
     sys.argv = [module, *rest]
-    runpy.run_module(module, run_name="__main__", alter_sys=True)
+    try:
+        runpy.run_module(module, run_name="__main__", alter_sys=True)
+    except KeyboardInterrupt:
+        # Stopped before the node program took over its signals (importing):
+        # nothing was started, so a stop like any other, without a traceback.
+        sys.exit(0)
 
 
 if __name__ == "__main__":

@@ -149,6 +149,19 @@ def module_command(module: str, *args: str) -> tuple[str, ...]:
     return (sys.executable, "-m", module, *args)
 
 
+def ignores_sigint(pid: int) -> bool:
+    """Whether process ``pid`` ignores SIGINT now (Linux's /proc; False where it
+    cannot tell)."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("SigIgn:"):
+                    return bool(int(line.split()[1], 16) >> (signal.SIGINT - 1) & 1)
+    except (OSError, ValueError):
+        pass
+    return False
+
+
 def child_environment(base: Mapping[str, str] | None = None) -> dict[str, str]:
     """The environment of node processes: this process's (ROS 2's runtime
     settings must carry over), with the packages this process imports from on
@@ -408,11 +421,20 @@ class ProcessGraph:
         return {name: codes[name] for name in self.running}
 
     def _stop_round(self, popens: Mapping[str, subprocess.Popen]) -> dict[str, int]:
+        deadline = time.monotonic() + self.shutdown_timeout
         for popen in popens.values():
+            # A process started from a shell's background job ignores SIGINT
+            # until graph/owned.py restores it, its first step: a SIGINT before
+            # that would be lost.
+            while (
+                popen.poll() is None
+                and ignores_sigint(popen.pid)
+                and time.monotonic() < deadline
+            ):
+                time.sleep(0.01)
             if popen.poll() is None:
                 with contextlib.suppress(ProcessLookupError):
                     popen.send_signal(signal.SIGINT)
-        deadline = time.monotonic() + self.shutdown_timeout
         codes = {}
         for name, popen in popens.items():
             try:
