@@ -41,10 +41,13 @@ COMMITTED = (
     "local_new_tasks",
     "local_kinematic",
     "pp_pop50_control",
+    "paper_runs_kinematic",
 )
 """The committed studies: the second local study (the engine's defaults since
 2026-12-01), the first, the population-200 test (its report has the preset's
-predictions) and the study of the two tasks beyond the paper (no paper column)."""
+predictions), the study of the two tasks beyond the paper (no paper column) and
+the study at the paper's run count (champions re-evaluated; tasks analysed as
+digest parts)."""
 SMALL_SOM = AnalysisSettings(
     som=SomSettings(rows=4, columns=4, sample_size=40, iterations=300)
 )
