@@ -219,10 +219,15 @@ def test_a_graph_started_from_a_background_job_still_stops_by_sigint(tmp_path):
     assert -signal.SIGKILL not in codes.values(), codes
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ignores_sigint_reads_the_process_disposition():
     from sdbc_evolution.graph.processes import ignores_sigint
 
-    for preexec, expected in ((_ignore_sigint, True), (None, False)):
+    # Both set explicitly: this test run may itself ignore SIGINT (a background job).
+    for preexec, expected in ((_ignore_sigint, True), (_default_sigint, False)):
         child = subprocess.Popen(
             ["sleep", "30"], preexec_fn=preexec, stdout=subprocess.DEVNULL
         )
