@@ -136,3 +136,26 @@ def test_parts_that_do_not_combine_are_refused_by_name(
     assert code == 2
     with pytest.raises(DigestError, match="nothing to combine"):
         combine_digests([])
+
+
+@pytest.mark.slow
+def test_a_session_in_two_parts_is_counted_once(
+    parts: dict[str, Path], tmp_path: Path
+) -> None:
+    """A task run later in the directory of a committed part has that part's
+    session in its log too (the paper-count study's predator-prey, then gate
+    escape): the report counts it once."""
+    import dataclasses
+
+    first = tmp_path / "first"
+    analyse(parts["gate_escape"], first, SMALL_SOM)
+    second = tmp_path / "second"
+    analyse(parts["aggregation"], second, SMALL_SOM)
+    one, two = read_digest(first / DIGEST_DIR), read_digest(second / DIGEST_DIR)
+    assert one.sessions and two.sessions
+    two = dataclasses.replace(two, sessions=one.sessions + two.sessions)
+    combined = combine_digests([("first", one), ("second", two)], ())
+    assert combined.sessions == one.sessions + tuple(
+        s for s in two.sessions if s not in one.sessions
+    )
+    assert len(combined.sessions) == len(one.sessions) + 1

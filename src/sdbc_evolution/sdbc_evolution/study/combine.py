@@ -14,11 +14,25 @@ runs as missing).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import json
+from collections.abc import Iterable, Sequence
 from pathlib import PurePosixPath
 
 from sdbc_evolution.study.digest import DigestError, StudyDigest, TaskDigest
 from sdbc_evolution.study.paper import PAPER_TASKS
+
+
+def _unique(sessions: Iterable[dict]) -> tuple[dict, ...]:
+    """``sessions`` in their order, each once: a later task run in the same study
+    directory as a committed part has that part's sessions in its log too."""
+    seen: set[str] = set()
+    kept = []
+    for session in sessions:
+        key = json.dumps(session, sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            kept.append(session)
+    return tuple(kept)
 
 
 def _task_of_problem(name: str) -> str | None:
@@ -87,7 +101,7 @@ def combine_digests(
         task_digests=tuple(by_task[t] for t in order),
         problems=problems,
         expected=first.expected,
-        sessions=tuple(s for _, part in parts for s in part.sessions),
+        sessions=_unique(s for _, part in parts for s in part.sessions),
         preset=first.preset,
         preset_error=None,
         command=tuple(command),
