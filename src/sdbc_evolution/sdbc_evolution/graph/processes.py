@@ -422,19 +422,20 @@ class ProcessGraph:
 
     def _stop_round(self, popens: Mapping[str, subprocess.Popen]) -> dict[str, int]:
         deadline = time.monotonic() + self.shutdown_timeout
-        for popen in popens.values():
-            # A process started from a shell's background job ignores SIGINT
-            # until graph/owned.py restores it, its first step: a SIGINT before
-            # that would be lost.
-            while (
-                popen.poll() is None
-                and ignores_sigint(popen.pid)
-                and time.monotonic() < deadline
-            ):
+        # A process started from a shell's background job ignores SIGINT until
+        # graph/owned.py restores it, its first step: a SIGINT before that would
+        # be lost. Each gets it as soon as it hears it, none waiting on another.
+        unsignalled = list(popens.values())
+        while unsignalled:
+            for popen in list(unsignalled):
+                if popen.poll() is not None:
+                    unsignalled.remove(popen)
+                elif not ignores_sigint(popen.pid) or time.monotonic() >= deadline:
+                    with contextlib.suppress(ProcessLookupError):
+                        popen.send_signal(signal.SIGINT)
+                    unsignalled.remove(popen)
+            if unsignalled:
                 time.sleep(0.01)
-            if popen.poll() is None:
-                with contextlib.suppress(ProcessLookupError):
-                    popen.send_signal(signal.SIGINT)
         codes = {}
         for name, popen in popens.items():
             try:
