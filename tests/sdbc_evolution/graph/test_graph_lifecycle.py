@@ -62,12 +62,18 @@ def _graph_file(tmp_path: Path) -> Path:
     return path
 
 
-def test_every_node_ends_when_the_launcher_is_killed(tmp_path):
-    env = {
+def _launcher_env(tmp_path: Path) -> dict[str, str]:
+    """A launcher's environment: this one's, a ROS home of the test's own, and
+    the packages this process imports on the path."""
+    return {
         **os.environ,
         "ROS_HOME": str(tmp_path / "ros_home"),
         "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
     }
+
+
+def test_every_node_ends_when_the_launcher_is_killed(tmp_path):
+    env = _launcher_env(tmp_path)
     launcher = subprocess.Popen(
         [
             sys.executable,
@@ -200,11 +206,7 @@ def test_a_graph_started_from_a_background_job_still_stops_by_sigint(tmp_path):
     import json
 
     _graph_file(tmp_path)
-    env = {
-        **os.environ,
-        "ROS_HOME": str(tmp_path / "ros_home"),
-        "PYTHONPATH": os.pathsep.join(p for p in sys.path if p),
-    }
+    env = _launcher_env(tmp_path)
     done = subprocess.run(
         [sys.executable, "-c", STOP_AT_ONCE, str(tmp_path)],
         env=env,
