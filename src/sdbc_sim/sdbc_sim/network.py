@@ -205,13 +205,29 @@ def _negated_sums(
         for k in range(flat.shape[0]):
             flat[k] = 1.0 / (flat[k] + 1.0)
     n_trials = out.shape[2]
+    n_in = w.shape[0]
     for u in range(out.shape[0]):
         for n in range(out.shape[1]):
             for t in range(n_trials):
                 out[u, n, t] = b[u, t]
-            for i in range(w.shape[0]):
+            # Four inputs per pass over the row, added left to right, so each
+            # sum is the same sequence of roundings as one input per pass, with
+            # a quarter of the row's loads and stores.
+            i = 0
+            while i + 4 <= n_in:
+                for t in range(n_trials):
+                    out[u, n, t] = (
+                        out[u, n, t]
+                        + w[i, u, t] * x[i, n, t]
+                        + w[i + 1, u, t] * x[i + 1, n, t]
+                        + w[i + 2, u, t] * x[i + 2, n, t]
+                        + w[i + 3, u, t] * x[i + 3, n, t]
+                    )
+                i += 4
+            while i < n_in:
                 for t in range(n_trials):
                     out[u, n, t] += w[i, u, t] * x[i, n, t]
+                i += 1
             for t in range(n_trials):
                 out[u, n, t] = -out[u, n, t]
 
