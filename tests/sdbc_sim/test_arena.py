@@ -66,7 +66,7 @@ def test_compiled_wall_rays_equal_the_array_formulation(task: str | None) -> Non
     assert (want == 1.0).any() and (want < 1.0).any() and (want == -1.0).any()
     # Into the rays' columns of a wider array, the others left alone.
     wide = np.full((b, n, rays.n_rays + 2), np.nan)
-    rays.read(*args, out=wide[..., 1 : 1 + rays.n_rays])
+    assert rays.read(*args, out=wide, column=1) is wide
     np.testing.assert_array_equal(wide[..., 1 : 1 + rays.n_rays], want)
     assert np.isnan(wide[..., 0]).all() and np.isnan(wide[..., -1]).all()
 

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from sdbc_sim.compiled import compiled
-from sdbc_sim.sensors import TWO_PI, ray_distance, row_view
+from sdbc_sim.sensors import TWO_PI, ray_distance
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState
 
 MAX_START_DRAWS = 100_000
@@ -93,15 +93,35 @@ class WallRays:
         cos_heading: np.ndarray,
         sin_heading: np.ndarray,
         out: np.ndarray | None = None,
+        column: int = 0,
     ) -> np.ndarray:
         """(B, N, n_rays) readings of robots at ``pos`` (B, N, 2) with headings of
-        cosine and sine (B, N), written into ``out`` when given (such as the rays'
-        columns of a task's sensor array; see :func:`~sdbc_sim.sensors.row_view`)."""
-        shape = (*cos_heading.shape, self.n_rays)
+        cosine and sine (B, N); or, given ``out`` (B, N, K), a task's sensor
+        array, written into its columns ``column`` onwards and ``out`` returned.
+
+        The loop takes the whole C-ordered array and the first column rather
+        than a view of the columns: numba compiles a view whose rows are not
+        contiguous with no fixed strides, which cost a quarter of the loop.
+
+        Raises:
+            ValueError: If ``out`` is not a C-ordered float64 array of the
+                robots' shape with room for the rays from ``column`` on.
+        """
+        b, n = cos_heading.shape
         if out is None:
-            out = np.empty(shape)
-        elif out.shape != shape:
-            raise ValueError(f"WallRays.read: out has shape {out.shape}, need {shape}")
+            out = np.empty((b, n, self.n_rays))
+        elif (
+            out.dtype != np.float64
+            or not out.flags.c_contiguous
+            or out.shape[:2] != (b, n)
+            or out.ndim != 3
+            or not 0 <= column <= out.shape[2] - self.n_rays
+        ):
+            raise ValueError(
+                f"WallRays.read: out must be C-ordered float64 ({b}, {n}, K) with "
+                f"{self.n_rays} columns from column {column}, got {out.dtype} "
+                f"{out.shape}"
+            )
         _wall_ray_readings(
             np.asarray(pos, dtype=np.float64).reshape(-1, 2),
             np.ascontiguousarray(cos_heading, dtype=np.float64).reshape(-1),
@@ -113,14 +133,16 @@ class WallRays:
             2.0 / self.ray_range,
             self._inner,
             self.walls,
-            row_view(out, self.n_rays, "WallRays.read"),
+            out.reshape(b * n, -1),
+            column,
         )
         return out
 
 
 @compiled(
     "void(float64[:, :], float64[::1], float64[::1], float64[::1], float64[::1], "
-    "float64, float64, float64, float64[::1], float64[:, :, ::1], float64[:, :])",
+    "float64, float64, float64, float64[::1], float64[:, :, ::1], float64[:, ::1], "
+    "intp)",
     calls=(ray_distance,),
 )
 def _wall_ray_readings(
@@ -135,11 +157,12 @@ def _wall_ray_readings(
     inner: np.ndarray,
     walls: np.ndarray,
     out: np.ndarray,
+    column: int,
 ) -> None:  # pragma: no cover - compiled; tested through WallRays.read
-    """Every robot's ray readings ((rows, n_rays) ``out``): 1 for a robot inside
-    ``inner`` (x_low, y_low, x_high, y_high; no ray reaches the border from
-    there), else per ray the reading of :func:`~sdbc_sim.sensors.ray_distance`
-    from the robot's edge.
+    """Every robot's ray readings, in ``out`` (rows, K) from ``column`` on: 1
+    for a robot inside ``inner`` (x_low, y_low, x_high, y_high; no ray reaches
+    the border from there), else per ray the reading of
+    :func:`~sdbc_sim.sensors.ray_distance` from the robot's edge.
 
     A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays the rays of the
     robots near a wall were gathered, rotated, stacked and scattered back at
@@ -153,12 +176,12 @@ def _wall_ray_readings(
         near = x < inner[0] or x > inner[2] or y < inner[1] or y > inner[3]
         for k in range(ray_cos.shape[0]):
             if not near:
-                out[m, k] = 1.0
+                out[m, column + k] = 1.0
                 continue
             ux = c * ray_cos[k] - s * ray_sin[k]
             uy = s * ray_cos[k] + c * ray_sin[k]
             d = ray_distance(x + radius * ux, y + radius * uy, ux, uy, ray_range, walls)
-            out[m, k] = min(d * scale - 1.0, 1.0) if np.isfinite(d) else 1.0
+            out[m, column + k] = min(d * scale - 1.0, 1.0) if np.isfinite(d) else 1.0
 
 
 def speed_and_turn(

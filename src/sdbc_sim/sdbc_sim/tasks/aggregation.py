@@ -237,7 +237,7 @@ class Aggregation(Task[AggregationTrials]):
             pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, out=out[..., :k]
         )
         out[..., k] = count * (2.0 / (n - 1)) - 1.0
-        self._wall_rays.read(pos, cos_h, sin_h, out=out[..., k + 1 :])
+        self._wall_rays.read(pos, cos_h, sin_h, out=out, column=k + 1)
         return out
 
     def actuate(

@@ -340,7 +340,7 @@ class Foraging(Task[ForagingTrials]):
             k,
             out=out[..., 5 : 5 + k],
         )
-        self._wall_rays.read(pos, cos_h, sin_h, out=out[..., 5 + k :])
+        self._wall_rays.read(pos, cos_h, sin_h, out=out, column=5 + k)
         return out
 
     def actuate(

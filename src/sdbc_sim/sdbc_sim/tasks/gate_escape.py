@@ -321,7 +321,7 @@ class GateEscape(Task[GateEscapeTrials]):
             out=out[..., 3 : 3 + c.n_robot_arcs],
         )
         out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
-        self._wall_rays.read(pos, cos_h, sin_h, out=out[..., 3 + c.n_robot_arcs :])
+        self._wall_rays.read(pos, cos_h, sin_h, out=out, column=3 + c.n_robot_arcs)
         return out
 
     def actuate(
