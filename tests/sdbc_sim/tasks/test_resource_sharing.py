@@ -31,7 +31,7 @@ from sdbc_sim.tasks.resource_sharing import (
     ResourceSharingConfig,
     ResourceSharingTrials,
 )
-from trial_oracle import assert_same_trials
+from trial_oracle import assert_same_trials, same_bits
 
 STOP = (0.0, 0.5, 1.0)
 GO = (1.0, 0.5, 0.0)
@@ -582,15 +582,6 @@ class ArrayResourceSharing(ResourceSharing):
             ),
             dataclasses.replace(station, attributes=occupied),
         )
-
-
-def same_bits(got: np.ndarray, want: np.ndarray) -> bool:
-    """Equal shapes, types and bits (-0.0 is not 0.0, a NaN equals its bits)."""
-    return (
-        got.shape == want.shape
-        and got.dtype == want.dtype
-        and got.tobytes() == want.tobytes()
-    )
 
 
 @pytest.mark.parametrize("anchor_docked", [False, True])
