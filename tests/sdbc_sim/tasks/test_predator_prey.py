@@ -13,6 +13,7 @@ step.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 
 import numpy as np
@@ -21,13 +22,15 @@ from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
 from sdbc_sim.sensors import bearing, norm, robot_sum, wrap_angle
 from sdbc_sim.task import BodyState
-from sdbc_sim.task_state import TaskState
+from sdbc_sim.task_state import GroupState, TaskState
 from sdbc_sim.tasks import make_task
 from sdbc_sim.tasks.predator_prey import (
     PredatorPrey,
     PredatorPreyConfig,
     PredatorPreyTrials,
+    _speeds_and_turns,
 )
+from trial_oracle import same_bits
 
 GO = (1.0, 0.5)
 STOP = (0.0, 0.5)
@@ -439,6 +442,26 @@ class ArrayPredatorPrey(PredatorPrey):
         outside = (prey < 0.0).any(axis=1) | (prey > s).any(axis=1)
         return captured | outside
 
+    def task_state(
+        self, trials: PredatorPreyTrials, bodies: BodyState
+    ) -> tuple[GroupState, ...]:
+        n = self.config.n_predators
+        attributes = bodies.kinematics()
+        centres = bodies.position.copy()
+        predators, prey, boundary = super().task_state(trials, bodies)
+        return (
+            dataclasses.replace(
+                predators, attributes=attributes[:, :n], centres=centres[:, :n]
+            ),
+            dataclasses.replace(
+                prey,
+                present=bodies.enabled[:, n : n + 1].copy(),
+                attributes=attributes[:, n:],
+                centres=centres[:, n:],
+            ),
+            boundary,
+        )
+
 
 def scattered_bodies(n: int, n_trials: int, seed: int) -> BodyState:
     """Predators and prey on a unit grid, so that distances tie, edges touch (0)
@@ -460,9 +483,10 @@ def scattered_bodies(n: int, n_trials: int, seed: int) -> BodyState:
 def test_compiled_sensors_prey_and_rules_equal_the_array_formulation(
     n: int, seed: int
 ) -> None:
-    """To the bit: the predators' inputs, the prey's speed and turn, d_i, and every
-    trial array the rules write, on scattered trials (ties, touching bodies,
-    distances exactly at the flee and capture thresholds, a prey outside)."""
+    """To the bit: the predators' inputs, the prey's speed and turn, d_i, every
+    trial array the rules write and the task state, on scattered trials (ties,
+    touching bodies, distances exactly at the flee and capture thresholds, a prey
+    outside)."""
     settings = {"n_predators": n, "flee_distance": 3.0}
     task = make_task("predator_prey", **settings)
     oracle = ArrayPredatorPrey(PredatorPreyConfig(**settings))
@@ -483,14 +507,57 @@ def test_compiled_sensors_prey_and_rules_equal_the_array_formulation(
         oracle.actuate(want_trials, want_bodies, outputs),
         strict=True,
     ):
-        np.testing.assert_array_equal(got, want)
-    np.testing.assert_array_equal(
+        assert same_bits(got, want)
+    assert same_bits(
         task.update(got_trials, got_bodies, 1),
         oracle.update(want_trials, want_bodies, 1),
     )
     for name in ("captured", "initial_distance", "final_distance", "dispersion_sum"):
-        np.testing.assert_array_equal(
-            getattr(got_trials, name), getattr(want_trials, name)
-        )
-    np.testing.assert_array_equal(got_bodies.enabled, want_bodies.enabled)
+        assert same_bits(getattr(got_trials, name), getattr(want_trials, name)), name
+    assert same_bits(got_bodies.enabled, want_bodies.enabled)
     assert got_trials.captured.any() and not got_trials.captured.all()
+    got_bodies.velocity = np.random.default_rng(seed).normal(
+        0.0, 0.5, (n_trials, n + 1, 2)
+    )
+    got_bodies.angular_velocity = outputs[:, :1, 0].repeat(n + 1, axis=1)
+    for got, want in zip(
+        task.task_state(got_trials, got_bodies),
+        oracle.task_state(got_trials, got_bodies),
+        strict=True,
+    ):
+        for field in dataclasses.fields(got):
+            a, w = getattr(got, field.name), getattr(want, field.name)
+            assert (a is None and w is None) or same_bits(a, w), field.name
+
+
+def test_compiled_speeds_and_turns_equal_the_array_formulation() -> None:
+    """To the bit: the prey's turn where its heading is exactly half a turn,
+    and more, from u's angle (wrapping to the edges of [-pi, pi)), with and
+    without a push; the predators' speeds and turns, no turn at o1 = 0.5."""
+    c = PredatorPreyConfig()
+    n, b = c.n_predators, 12
+    rng = np.random.default_rng(3)
+    outputs = rng.uniform(0.0, 1.0, (b, n, 2))
+    outputs[::3, :, 1] = 0.5
+    ux = rng.choice([0.0, -0.3, 2.0], b)
+    uy = rng.choice([0.0, 0.0, 1e-300], b)
+    target = np.arctan2(uy, ux)
+    angle = rng.uniform(-2 * math.pi, 2 * math.pi, (b, n + 1))
+    half = np.array([math.pi, -math.pi, 3 * math.pi, 0.0, 2 * math.pi, -0.0])
+    angle[:, n] = target + np.resize(half, b)
+    angle[-1, n] = np.nextafter(target[-1] + math.pi, np.inf)
+    speed = np.empty((b, n + 1))
+    turn = np.empty((b, n + 1))
+    _speeds_and_turns(
+        outputs, angle, ux, uy, target, c.predator_speed, c.max_turn, 0.75, speed, turn
+    )
+    flees = (ux != 0.0) | (uy != 0.0)
+    want_turn = np.empty((b, n + 1))
+    want_turn[:, :n] = (2.0 * outputs[..., 1] - 1.0) * c.max_turn
+    want_turn[:, n] = np.where(flees, wrap_angle(target - angle[:, n]), 0.0)
+    want_speed = np.empty((b, n + 1))
+    want_speed[:, :n] = outputs[..., 0] * c.predator_speed
+    want_speed[:, n] = np.where(flees, 0.75, 0.0)
+    assert same_bits(speed, want_speed)
+    assert same_bits(turn, want_turn)
+    assert flees.any() and not flees.all()

@@ -13,6 +13,7 @@ step k - 1.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -22,7 +23,7 @@ from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, TrialStepper, run_batch
 from sdbc_sim.sensors import bearing, norm, robot_sum
 from sdbc_sim.task import BodyState
-from sdbc_sim.task_state import TaskState
+from sdbc_sim.task_state import GroupState, TaskState
 from sdbc_sim.tasks import make_task
 from sdbc_sim.tasks.resource_sharing import (
     NO_CHARGE_OPTIMUM,
@@ -30,7 +31,7 @@ from sdbc_sim.tasks.resource_sharing import (
     ResourceSharingConfig,
     ResourceSharingTrials,
 )
-from trial_oracle import assert_same_trials
+from trial_oracle import assert_same_trials, same_bits
 
 STOP = (0.0, 0.5, 1.0)
 GO = (1.0, 0.5, 0.0)
@@ -519,6 +520,18 @@ class ArrayResourceSharing(ResourceSharing):
         out[..., k + 3] = np.where(cue, 1.0, -1.0)
         return out
 
+    def actuate(
+        self, trials: ResourceSharingTrials, bodies: BodyState, outputs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        c = self.config
+        alive = trials.energy > 0.0
+        go = alive & (outputs[..., 2] <= c.stop_threshold)
+        command = np.where(go, outputs[..., 0], 0.0)
+        trials.command = command
+        turning = go if c.stop_freezes_heading else alive
+        turn = np.where(turning, (2.0 * outputs[..., 1] - 1.0) * c.max_turn, 0.0)
+        return command * c.max_speed, turn
+
     def update(
         self, trials: ResourceSharingTrials, bodies: BodyState, step: int
     ) -> np.ndarray:
@@ -552,6 +565,24 @@ class ArrayResourceSharing(ResourceSharing):
             trials.sampled_distance += robot_sum(distance * alive)
         return ~alive.any(axis=1)
 
+    def task_state(
+        self, trials: ResourceSharingTrials, bodies: BodyState
+    ) -> tuple[GroupState, ...]:
+        agents = bodies.kinematics(2)
+        agents[..., 4] = trials.energy
+        agents[..., 5] = trials.charging
+        occupied = np.asarray(trials.charging.any(axis=1), np.float64)[:, None, None]
+        _, station = super().task_state(trials, bodies)
+        return (
+            GroupState(
+                present=trials.energy > 0.0,
+                attributes=agents,
+                centres=bodies.position.copy(),
+                radii=self._radii,
+            ),
+            dataclasses.replace(station, attributes=occupied),
+        )
+
 
 @pytest.mark.parametrize("anchor_docked", [False, True])
 @pytest.mark.parametrize("step", [1, 2])
@@ -578,6 +609,7 @@ def test_compiled_rules_equal_the_array_formulation(
     rows[..., 0] = CENTRE[0] + offset
     rows[..., 1] = CENTRE[1]
     rows[..., 3] = rng.choice([0.0, 0.0005, c.stationary_speed, 0.5], (b, n))
+    rows[..., 4] = rng.choice([0.0, 0.0004, -0.0007], (b, n))
     got_bodies = BodyState.at_rest(rows[..., 0:2], np.zeros((b, n)))
     got_bodies.velocity[..., 0] = rows[..., 3]
     want_bodies = copy.deepcopy(got_bodies)
@@ -618,3 +650,54 @@ def test_compiled_station_sensors_equal_the_array_formulation(
     np.testing.assert_array_equal(
         task.sensors(trials, bodies), oracle.sensors(trials, bodies)
     )
+
+
+@pytest.mark.parametrize("freezes", [True, False])
+def test_compiled_commands_equal_the_array_formulation(freezes: bool) -> None:
+    """To the bit: the speed commands, speeds and turns of dead and living robots
+    told to go, to stop, and exactly at the stop threshold."""
+    settings = {"stop_freezes_heading": freezes}
+    task = make_task("resource_sharing", **settings)
+    oracle = ArrayResourceSharing(ResourceSharingConfig(**settings))
+    rng = np.random.default_rng(4)
+    b, n = 90, task.config.n_robots
+    got, _, _ = task.reset([np.random.default_rng(t) for t in range(b)])
+    got.energy[:] = rng.choice([0.0, 1.0, 500.0], (b, n))
+    want = copy.deepcopy(got)
+    outputs = rng.uniform(0.0, 1.0, (b, n, 3))
+    outputs[..., 1] = np.where(rng.random((b, n)) < 0.3, 0.5, outputs[..., 1])
+    outputs[..., 2] = np.where(
+        rng.random((b, n)) < 0.3, task.config.stop_threshold, outputs[..., 2]
+    )
+    bodies = BodyState.at_rest(np.zeros((b, n, 2)), np.zeros((b, n)))
+    for got_array, want_array in zip(
+        task.actuate(got, bodies, outputs),
+        oracle.actuate(want, bodies, outputs),
+        strict=True,
+    ):
+        assert same_bits(got_array, want_array)
+    assert same_bits(got.command, want.command)
+
+
+def test_compiled_task_state_equals_the_array_formulation() -> None:
+    """To the bit: every array of both groups, with dead, charging and moving
+    robots, and trials with and without a charging robot, positions and
+    velocities read from strided state rows as the engine passes them."""
+    task = make_task("resource_sharing")
+    oracle = ArrayResourceSharing(ResourceSharingConfig())
+    rng = np.random.default_rng(5)
+    b, n = 90, task.config.n_robots
+    trials, _, _ = task.reset([np.random.default_rng(t) for t in range(b)])
+    trials.energy[:] = rng.choice([0.0, 1.0, 500.0], (b, n))
+    trials.charging[:] = rng.random((b, n)) < 0.2
+    rows = rng.normal(75.0, 30.0, (b, n, 5))
+    bodies = BodyState.at_rest(rows[..., 0:2], rows[..., 2])
+    bodies.velocity = rows[..., 3:5]
+    bodies.angular_velocity = rng.uniform(-0.78, 0.78, (b, n))
+    for got, want in zip(
+        task.task_state(trials, bodies), oracle.task_state(trials, bodies), strict=True
+    ):
+        for field in dataclasses.fields(got):
+            a, w = getattr(got, field.name), getattr(want, field.name)
+            assert (a is None and w is None) or same_bits(a, w), field.name
+    assert 0 < trials.charging.any(axis=1).sum() < b

@@ -15,3 +15,12 @@ def assert_same_trials(got: TrialArrays, want: TrialArrays) -> None:
         np.testing.assert_array_equal(
             getattr(got, field.name), getattr(want, field.name), field.name
         )
+
+
+def same_bits(got: np.ndarray, want: np.ndarray) -> bool:
+    """Equal shapes, types and bits (-0.0 is not 0.0, a NaN equals its bits)."""
+    return (
+        got.shape == want.shape
+        and got.dtype == want.dtype
+        and got.tobytes() == want.tobytes()
+    )

@@ -75,11 +75,17 @@ from sdbc_sim.sensors import (
     bearing_arguments,
     centroid_spread,
     distance_sum,
-    robot_sum,
     wrap_angle,
 )
 from sdbc_sim.settings import PositiveFloat, PositiveInt, check, settings
-from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
+from sdbc_sim.task import (
+    KINEMATICS,
+    BodyLayout,
+    BodyState,
+    Task,
+    TrialArrays,
+    kinematics_row,
+)
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
 
@@ -333,62 +339,69 @@ class PredatorPrey(Task[PredatorPreyTrials]):
         c = self.config
         n = c.n_predators
         b = outputs.shape[0]
-        speed = np.empty((b, n + 1))
-        turn = np.empty((b, n + 1))
-        speed[:, :n] = outputs[..., 0] * c.predator_speed
-        turn[:, :n] = (2.0 * outputs[..., 1] - 1.0) * c.max_turn
-        # The prey's flight, from the positions before the step.
-        centre = np.empty((b, n))
+        # The prey's flight, from the positions before the step; d_i from the
+        # bodies as the first step finds them (NaN until then).
         ux = np.empty(b)
         uy = np.empty(b)
         _flight(
             bodies.position,
             c.predator_radius + c.prey_radius,
             c.flee_distance,
-            centre,
+            trials.initial_distance,
             ux,
             uy,
         )
-        # d_i from the bodies as the first step finds them (NaN until then).
-        first = np.isnan(trials.initial_distance)
-        if first.any():
-            trials.initial_distance[first] = robot_sum(centre[first]) / n
-        flees = (ux != 0.0) | (uy != 0.0)
-        speed[:, n] = np.where(flees, c.prey_speed, 0.0)
         target = np.arctan2(uy, ux)
-        turn[:, n] = np.where(flees, wrap_angle(target - bodies.angle[:, n]), 0.0)
+        speed = np.empty((b, n + 1))
+        turn = np.empty((b, n + 1))
+        _speeds_and_turns(
+            outputs,
+            bodies.angle,
+            ux,
+            uy,
+            target,
+            c.predator_speed,
+            c.max_turn,
+            c.prey_speed,
+            speed,
+            turn,
+        )
         return speed, turn
 
     def update(
         self, trials: PredatorPreyTrials, bodies: BodyState, step: int
     ) -> np.ndarray:
         c = self.config
-        n, s = c.n_predators, c.arena_size
-        b = bodies.angle.shape[0]
-        captured = np.empty(b, dtype=bool)
-        final_distance = np.empty(b)
-        dispersion = np.empty(b)
+        ends = np.empty(bodies.angle.shape[0], dtype=bool)
         _pursuit(
             bodies.position,
             c.capture_distance,
-            captured,
-            final_distance,
-            dispersion,
+            c.arena_size,
+            trials.captured,
+            bodies.enabled,
+            trials.final_distance,
+            trials.dispersion_sum,
+            ends,
         )
-        trials.captured |= captured
-        bodies.enabled[:, n] &= ~captured
-        trials.final_distance = final_distance
-        trials.dispersion_sum += dispersion
-        prey = bodies.position[:, n]
-        outside = (prey < 0.0).any(axis=1) | (prey > s).any(axis=1)
-        return captured | outside
+        return ends
 
     def task_state(
         self, trials: PredatorPreyTrials, bodies: BodyState
     ) -> tuple[GroupState, ...]:
         n = self.config.n_predators
-        attributes = bodies.kinematics()
-        centres = bodies.position.copy()
+        b, r = bodies.angle.shape
+        attributes = np.empty((b, r, len(KINEMATICS)))
+        centres = np.empty((b, r, 2))
+        prey_present = np.empty((b, 1), dtype=bool)
+        _body_attributes(
+            np.asarray(bodies.position, dtype=np.float64),
+            np.asarray(bodies.angular_velocity, dtype=np.float64),
+            np.asarray(bodies.velocity, dtype=np.float64),
+            bodies.enabled,
+            attributes,
+            centres,
+            prey_present,
+        )
         return (
             GroupState(
                 present=self._predator_present,
@@ -397,7 +410,7 @@ class PredatorPrey(Task[PredatorPreyTrials]):
                 radii=self._predator_radii,
             ),
             GroupState(
-                present=bodies.enabled[:, n : n + 1].copy(),
+                present=prey_present,
                 attributes=attributes[:, n:],
                 centres=centres[:, n:],
                 radii=self._prey_radii,
@@ -517,29 +530,30 @@ def _predator_readings(
 
 
 @compiled(
-    "void(float64[:, :, :], float64, float64, float64[:, ::1], float64[::1], "
-    "float64[::1])"
+    "void(float64[:, :, :], float64, float64, float64[::1], float64[::1], float64[::1])"
 )
 def _flight(
     pos: np.ndarray,
     contact: float,
     flee_distance: float,
-    centre: np.ndarray,
+    initial_distance: np.ndarray,
     ux: np.ndarray,
     uy: np.ndarray,
 ) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.actuate
     """The prey's push u = sum_i (p_prey - p_i) / (|p_prey - p_i| d_i) over the
     predators whose edge distance d_i lies in (0, ``flee_distance``), summed in
-    predator order from the first term; and the centre distances (B, N)."""
-    n = centre.shape[1]
+    predator order from the first term; and d_i, the predators' mean centre
+    distance to the prey, where ``initial_distance`` is still NaN."""
+    n = pos.shape[1] - 1
     for t in range(pos.shape[0]):
         sx = 0.0
         sy = 0.0
+        total = 0.0
         for i in range(n):
             ax = pos[t, n, 0] - pos[t, i, 0]
             ay = pos[t, n, 1] - pos[t, i, 1]
             c = np.sqrt(ax * ax + ay * ay)
-            centre[t, i] = c
+            total = c if i == 0 else total + c
             edge = c - contact
             w = 1.0 / (edge * c) if edge > 0.0 and edge < flee_distance else 0.0
             if i == 0:
@@ -548,24 +562,69 @@ def _flight(
             else:
                 sx += ax * w
                 sy += ay * w
+        if np.isnan(initial_distance[t]):
+            initial_distance[t] = total / n
         ux[t] = sx
         uy[t] = sy
 
 
 @compiled(
-    "void(float64[:, :, :], float64, boolean[::1], float64[::1], float64[::1])",
+    "void(float64[:, :, :], float64[:, :], float64[::1], float64[::1], "
+    "float64[::1], float64, float64, float64, float64[:, ::1], float64[:, ::1])",
+    calls=(wrap_angle,),
+)
+def _speeds_and_turns(
+    outputs: np.ndarray,
+    angle: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    target: np.ndarray,
+    predator_speed: float,
+    max_turn: float,
+    prey_speed: float,
+    speed: np.ndarray,
+    turn: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.actuate
+    """Every body's speed and turn (B, N + 1): the predators' from the network's
+    ``outputs`` (B, N, 2), the prey's from its push u (:func:`_flight`) and u's
+    angle ``target`` (numpy's atan2, :mod:`sdbc_sim.compiled`): a fleeing prey
+    (u not 0) turns to ``target`` and moves ``prey_speed``, else stands still. A
+    compiled loop: as whole arrays some ten operations per step on (B, N) and
+    (B,) arrays, which the loop does in their order; the turn is
+    :func:`~sdbc_sim.sensors.wrap_angle` itself, compiled (its ``np.mod`` is the
+    C library's exact ``fmod`` and the same sign fix-up in numpy and numba).
+    """
+    n = outputs.shape[1]
+    for t in range(outputs.shape[0]):
+        for i in range(n):
+            speed[t, i] = outputs[t, i, 0] * predator_speed
+            turn[t, i] = (2.0 * outputs[t, i, 1] - 1.0) * max_turn
+        flees = ux[t] != 0.0 or uy[t] != 0.0
+        speed[t, n] = prey_speed if flees else 0.0
+        turn[t, n] = wrap_angle(target[t] - angle[t, n]) if flees else 0.0
+
+
+@compiled(
+    "void(float64[:, :, :], float64, float64, boolean[::1], boolean[:, :], "
+    "float64[::1], float64[::1], boolean[::1])",
     calls=(centroid_spread, distance_sum),
 )
 def _pursuit(
     pos: np.ndarray,
     capture_distance: float,
+    size: float,
     captured: np.ndarray,
+    enabled: np.ndarray,
     final_distance: np.ndarray,
-    dispersion: np.ndarray,
+    dispersion_sum: np.ndarray,
+    ends: np.ndarray,
 ) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.update
-    """Per trial after a step: is a predator centre within ``capture_distance``
-    of the prey's, the predators' mean centre distance to the prey, and their
-    mean distance to their centroid; sums in predator order from the first term."""
+    """The rules after a step, per trial: a predator centre within
+    ``capture_distance`` of the prey's captures it (``captured``, and the prey's
+    body switched off), d_f the predators' mean centre distance to the prey, the
+    dispersion sum grows by their mean distance to their centroid, and ``ends``
+    at a capture or with the prey's centre outside [0, size]^2; sums in predator
+    order from the first term."""
     n = pos.shape[1] - 1
     for t in range(pos.shape[0]):
         qx = pos[t, n, 0]
@@ -578,6 +637,37 @@ def _pursuit(
             c = np.sqrt(ox * ox + oy * oy)
             caught = caught or c <= capture_distance
             total = c if i == 0 else total + c
-        captured[t] = caught
+        if caught:
+            captured[t] = True
+            enabled[t, n] = False
         final_distance[t] = total / n
-        dispersion[t] = centroid_spread(pos, t, n) / n
+        dispersion_sum[t] += centroid_spread(pos, t, n) / n
+        outside = qx < 0.0 or qy < 0.0 or qx > size or qy > size
+        ends[t] = caught or outside
+
+
+@compiled(
+    "void(float64[:, :, :], float64[:, :], float64[:, :, :], boolean[:, :], "
+    "float64[:, :, ::1], float64[:, :, ::1], boolean[:, ::1])",
+    calls=(kinematics_row,),
+)
+def _body_attributes(
+    position: np.ndarray,
+    angular_velocity: np.ndarray,
+    velocity: np.ndarray,
+    enabled: np.ndarray,
+    attributes: np.ndarray,
+    centres: np.ndarray,
+    prey_present: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """The task state's arrays in one pass: every body's kinematics
+    (:meth:`~sdbc_sim.task.BodyState.kinematics`) and centre (a copy of the
+    positions), and whether the prey (the last body) is still in the trial. As
+    whole arrays: the kinematics' pass and two strided copies per step."""
+    prey = position.shape[1] - 1
+    for t in range(position.shape[0]):
+        for i in range(position.shape[1]):
+            kinematics_row(position, angular_velocity, velocity, attributes, t, i)
+            centres[t, i, 0] = position[t, i, 0]
+            centres[t, i, 1] = position[t, i, 1]
+        prey_present[t, 0] = enabled[t, prey]

@@ -126,7 +126,7 @@ from sdbc_sim.settings import (
     check,
     settings,
 )
-from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays
+from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays, kinematics_row
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
 NO_CHARGE_OPTIMUM = 99775 / 345 / 2000
@@ -422,13 +422,21 @@ class ResourceSharing(Task[ResourceSharingTrials]):
         self, trials: ResourceSharingTrials, bodies: BodyState, outputs: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         c = self.config
-        alive = trials.energy > 0.0
-        go = alive & (outputs[..., 2] <= c.stop_threshold)
-        command = np.where(go, outputs[..., 0], 0.0)
-        trials.command = command
-        turning = go if c.stop_freezes_heading else alive
-        turn = np.where(turning, (2.0 * outputs[..., 1] - 1.0) * c.max_turn, 0.0)
-        return command * c.max_speed, turn
+        trials.command = np.empty(trials.energy.shape)
+        speed = np.empty(trials.energy.shape)
+        turn = np.empty(trials.energy.shape)
+        _commands(
+            trials.energy,
+            outputs,
+            c.stop_threshold,
+            c.stop_freezes_heading,
+            c.max_speed,
+            c.max_turn,
+            trials.command,
+            speed,
+            turn,
+        )
+        return speed, turn
 
     def update(
         self, trials: ResourceSharingTrials, bodies: BodyState, step: int
@@ -441,7 +449,7 @@ class ResourceSharing(Task[ResourceSharingTrials]):
             trials.docked_steps,
             trials.charging,
             bodies.position,
-            bodies.speed,
+            bodies.velocity,
             np.array(
                 [
                     c.min_energy_drain,
@@ -469,16 +477,27 @@ class ResourceSharing(Task[ResourceSharingTrials]):
     def task_state(
         self, trials: ResourceSharingTrials, bodies: BodyState
     ) -> tuple[GroupState, ...]:
-        pos = bodies.position
-        agents = bodies.kinematics(2)
-        agents[..., 4] = trials.energy
-        agents[..., 5] = trials.charging
-        occupied = np.asarray(trials.charging.any(axis=1), np.float64)[:, None, None]
+        b, n = trials.energy.shape
+        agents = np.empty((b, n, 6))
+        present = np.empty((b, n), dtype=bool)
+        centres = np.empty((b, n, 2))
+        occupied = np.empty((b, 1, 1))
+        _agent_attributes(
+            np.asarray(bodies.position, dtype=np.float64),
+            np.asarray(bodies.angular_velocity, dtype=np.float64),
+            np.asarray(bodies.velocity, dtype=np.float64),
+            trials.energy,
+            trials.charging,
+            agents,
+            present,
+            centres,
+            occupied,
+        )
         return (
             GroupState(
-                present=trials.energy > 0.0,
+                present=present,
                 attributes=agents,
-                centres=pos.copy(),
+                centres=centres,
                 radii=self._radii,
             ),
             GroupState(
@@ -557,7 +576,7 @@ def _station_readings(
 
 @compiled(
     "void(float64[:, :], float64[:, :], int64[:, :], boolean[:, :], "
-    "float64[:, :, :], float64[:, :], float64[::1], int64, boolean, boolean, "
+    "float64[:, :, :], float64[:, :, :], float64[::1], int64, boolean, boolean, "
     "boolean[:, :], float64[:], int64[:], float64[:], float64[:], float64[:], "
     "boolean[::1])"
 )
@@ -567,7 +586,7 @@ def _energy_rules(
     docked_steps: np.ndarray,
     charging: np.ndarray,
     pos: np.ndarray,
-    speed: np.ndarray,
+    velocity: np.ndarray,
     constants: np.ndarray,
     charge_delay: int,
     sample: bool,
@@ -589,7 +608,11 @@ def _energy_rules(
     e_max. A compiled loop (:mod:`sdbc_sim.compiled`): as whole arrays these were
     some thirty operations over (B, N) at every step; the loop does each robot's
     operations in their order and sums the robots in index order, as
-    ``robot_sum`` does (``tests/sdbc_sim/tasks/test_resource_sharing.py``).
+    ``robot_sum`` does (``tests/sdbc_sim/tasks/test_resource_sharing.py``). A
+    robot's speed |v| (``BodyState.speed``, the C library's ``hypot`` as numpy's)
+    is taken only where a rule reads it: for a robot alive on the station, and at
+    a sampled step; as a whole array it was a strided ``hypot`` of every robot at
+    every step.
     """
     least_drain, most_drain, cx, cy, dock, stationary, rate, most = constants
     for b in range(energy.shape[0]):
@@ -608,7 +631,13 @@ def _energy_rules(
             d2 = dx * dx
             d2 += dy * dy
             distance = np.sqrt(d2)
-            docked = alive and distance < dock and speed[b, r] < stationary
+            near = alive and distance < dock
+            speed = (
+                math.hypot(velocity[b, r, 0], velocity[b, r, 1])
+                if near or sample
+                else 0.0
+            )
+            docked = near and speed < stationary
             charges = docked and docked_steps[b, r] >= charge_delay
             docked_steps[b, r] = (
                 min(docked_steps[b, r] + 1, charge_delay) if docked else 0
@@ -626,13 +655,13 @@ def _energy_rules(
                 total, s_energy, s_speed, s_distance = (
                     e,
                     e * on,
-                    speed[b, r] * on,
+                    speed * on,
                     distance * on,
                 )
             else:
                 total += e
                 s_energy += e * on
-                s_speed += speed[b, r] * on
+                s_speed += speed * on
                 s_distance += distance * on
             anyone = anyone or alive
             alive_count += 1 if alive else 0
@@ -643,6 +672,74 @@ def _energy_rules(
             sampled_speed[b] += s_speed
             sampled_distance[b] += s_distance
         ends[b] = not anyone
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :, :], float64, boolean, float64, float64, "
+    "float64[:, ::1], float64[:, ::1], float64[:, ::1])"
+)
+def _commands(
+    energy: np.ndarray,
+    outputs: np.ndarray,
+    stop_threshold: float,
+    stop_freezes_heading: bool,
+    max_speed: float,
+    max_turn: float,
+    command: np.ndarray,
+    speed: np.ndarray,
+    turn: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """Every robot's speed command / max_speed (module docstring's outputs), speed
+    and turn (B, N) from the network's ``outputs`` (B, N, 3): a dead robot, and
+    one told to stop, drives 0; it turns unless dead or (``stop_freezes_heading``)
+    told to stop. A compiled loop (:mod:`sdbc_sim.compiled`), as whole arrays some
+    ten operations over (B, N) at every step; the array formulation's operations
+    (``tests/sdbc_sim/tasks/test_resource_sharing.py``)."""
+    for b in range(energy.shape[0]):
+        for r in range(energy.shape[1]):
+            alive = energy[b, r] > 0.0
+            go = alive and outputs[b, r, 2] <= stop_threshold
+            c = outputs[b, r, 0] if go else 0.0
+            command[b, r] = c
+            speed[b, r] = c * max_speed
+            turning = go if stop_freezes_heading else alive
+            turn[b, r] = (2.0 * outputs[b, r, 1] - 1.0) * max_turn if turning else 0.0
+
+
+@compiled(
+    "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64[:, :], "
+    "boolean[:, :], float64[:, :, ::1], boolean[:, ::1], float64[:, :, ::1], "
+    "float64[:, :, ::1])",
+    calls=(kinematics_row,),
+)
+def _agent_attributes(
+    position: np.ndarray,
+    angular_velocity: np.ndarray,
+    velocity: np.ndarray,
+    energy: np.ndarray,
+    charging: np.ndarray,
+    agents: np.ndarray,
+    present: np.ndarray,
+    centres: np.ndarray,
+    occupied: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against the array formulation
+    """The task state's arrays in one pass: the Agent group's attributes (B, N,
+    6), the kinematics (:meth:`~sdbc_sim.task.BodyState.kinematics`), energy and
+    "is charging" (1 or 0); its ``present`` (alive) and ``centres`` (a copy of
+    the positions); the Station's "is occupied" (B, 1, 1), 1 where some robot
+    charged. As whole arrays: a strided copy, the kinematics' pass, two column
+    writes, a comparison and a reduction over (B, N) at every step."""
+    for t in range(agents.shape[0]):
+        anyone = False
+        for i in range(agents.shape[1]):
+            kinematics_row(position, angular_velocity, velocity, agents, t, i)
+            agents[t, i, 4] = energy[t, i]
+            agents[t, i, 5] = 1.0 if charging[t, i] else 0.0
+            present[t, i] = energy[t, i] > 0.0
+            centres[t, i, 0] = position[t, i, 0]
+            centres[t, i, 1] = position[t, i, 1]
+            anyone = anyone or charging[t, i]
+        occupied[t, 0, 0] = 1.0 if anyone else 0.0
 
 
 TASK = ResourceSharing
