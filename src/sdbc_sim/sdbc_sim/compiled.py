@@ -20,12 +20,16 @@ divisions, square roots and comparisons are the IEEE operations numpy does, and
 each loop does them in the order of the array formulation it replaces, so its
 results are the same to the bit (each module's tests keep that formulation as
 the oracle). Functions of the C maths library stay in numpy, whose
-implementations may differ from the ones numba calls in the last bit, with two
+implementations may differ from the ones numba calls in the last bit (numpy's
+``exp`` and ``arctan2`` are its own vectorised code on a CPU with AVX-512), with
 exceptions where they were most of a step's cost as whole arrays: the drive
 (``sdbc_sim.drive.drive_body``) takes each new heading's cosine and sine, and
-the task state (``sdbc_sim.task._kinematics``) each speed's ``hypot``, from the C
-library numba calls: the same glibc functions numpy's float64 ``cos``, ``sin``
-and ``hypot`` call here, which their tests compare to the bit.
+the task state (``sdbc_sim.task._kinematics``) and resource sharing's energy
+rules each speed's ``hypot``, from the C library numba calls: the same glibc
+functions numpy's float64 ``cos``, ``sin`` and ``hypot`` call here, which their
+tests compare to the bit. Predator-prey's turns wrap angles with ``np.mod``,
+which numba and numpy both compute as an exact ``fmod`` with the same sign
+correction.
 """
 
 from __future__ import annotations
