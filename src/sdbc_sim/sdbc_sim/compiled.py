@@ -23,7 +23,7 @@ the oracle). Functions of the C maths library stay in numpy, whose
 implementations may differ from the ones numba calls in the last bit (numpy's
 ``exp`` and ``arctan2`` are its own vectorised code on a CPU with AVX-512), with
 exceptions where they were most of a step's cost as whole arrays: the drive
-(``sdbc_sim.drive.drive_body``) takes each new heading's cosine and sine, and
+(``sdbc_sim.engine._drive_rows``) takes each new heading's cosine and sine, and
 the task state (``sdbc_sim.task._kinematics``) and resource sharing's energy
 rules each speed's ``hypot``, from the C library numba calls: the same glibc
 functions numpy's float64 ``cos``, ``sin`` and ``hypot`` call here, which their

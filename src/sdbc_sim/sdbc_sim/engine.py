@@ -21,12 +21,13 @@ mean.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from sdbc_sim.drive import drive_rows
+from sdbc_sim.compiled import compiled
 
 # Re-exported: the engine's callers sum trials up with it.
 from sdbc_sim.fitness import FITNESS_MEANS as FITNESS_MEANS
@@ -219,7 +220,7 @@ class BatchSimulation:
         if self.network_observers:
             self._tell_network_observers(inputs, outputs)
         speed, turn = task.actuate(self.trials, self.bodies, outputs)
-        self._move(speed, turn)
+        self.spaces.step(self._drive(speed, turn), self._rows)
         self.spaces.separate(self._rows, self.bodies.enabled, self._anchored)
         self.step_count += 1
         k = self.step_count
@@ -268,26 +269,6 @@ class BatchSimulation:
         for observer in self.network_observers:
             observer.observe_network(trials, inputs, outputs, enabled)
 
-    def _move(self, speed: np.ndarray, turn: np.ndarray) -> None:
-        """Steps the physics with the robots' speeds and turns (B, R): the
-        kinematic model drives and moves each body in one pass, the same to
-        the bit as the drive rows of :meth:`_drive` and then its step."""
-        spaces = self.spaces
-        if not isinstance(spaces, KinematicTrials):
-            spaces.step(self._drive(speed, turn), self._rows)
-            return
-        spaces.drive_and_step(
-            self.bodies.angle,
-            np.asarray(speed, dtype=np.float64),
-            np.asarray(turn, dtype=np.float64),
-            self.bodies.enabled,
-            self._running,
-            self._turn_rate,
-            self._cos,
-            self._sin,
-            self._rows,
-        )
-
     def _drive(self, speed: np.ndarray, turn: np.ndarray) -> np.ndarray:
         """Drive rows (rows, 4), laid out as ``spaces.drive_columns``: angle,
         angular velocity, and velocity or force.
@@ -308,7 +289,7 @@ class BatchSimulation:
         drive = np.empty((rows.shape[0], WRITE_WIDTH))
         # The physics keeps the heading set here as the state's angle, so the
         # cosines and sines serve the next sensors too.
-        drive_rows(
+        _drive_rows(
             self.bodies.angle,
             np.asarray(speed, dtype=np.float64),
             np.asarray(turn, dtype=np.float64),
@@ -394,6 +375,60 @@ class BatchSimulation:
             buf[self.live] = a
             out[name] = buf
         return GroupState(**out)
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :], float64[:, :], boolean[:, :], boolean[::1], "
+    "float64, float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+    "intp, intp, intp, intp)"
+)
+def _drive_rows(
+    angle: np.ndarray,
+    speed: np.ndarray,
+    turn: np.ndarray,
+    enabled: np.ndarray,
+    running: np.ndarray,
+    dt: float,
+    turn_rate: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    drive: np.ndarray,
+    col_angle: int,
+    col_angular_velocity: int,
+    col_x: int,
+    col_y: int,
+) -> None:  # pragma: no cover - compiled; tested against the numpy form
+    """:meth:`BatchSimulation._drive` for bodies (B, R): with m = 1 for a body
+    that is enabled in a running trial and 0 otherwise, the turn t m, the turn
+    rate t m / dt, the heading h = angle + t m and its cosine and sine, and the
+    drive row (h, 0, v cos h, v sin h) with v = speed m, the operations of the
+    array form (``tests/sdbc_sim/test_engine.py``) in its order.
+
+    Unlike most loops (:mod:`sdbc_sim.compiled` names the two exceptions), this
+    one takes its cosine and sine from the C library numba calls rather than from
+    numpy: as whole arrays they were most of the drive's cost, and on the
+    platforms we build for both call the same C library (glibc; the test compares
+    them to the bit).
+    Every path to a heading's cosine after the first step goes through here, so
+    a trial alone, in a batch and live still agree whatever that library."""
+    n = angle.shape[1]
+    for t in range(angle.shape[0]):
+        run = running[t]
+        for i in range(n):
+            m = 1.0 if enabled[t, i] and run else 0.0
+            tm = turn[t, i] * m
+            turn_rate[t, i] = tm / dt
+            h = angle[t, i] + tm
+            c = math.cos(h)
+            s = math.sin(h)
+            cos_h[t, i] = c
+            sin_h[t, i] = s
+            v = speed[t, i] * m
+            row = t * n + i
+            drive[row, col_angle] = h
+            drive[row, col_angular_velocity] = 0.0
+            drive[row, col_x] = v * c
+            drive[row, col_y] = v * s
 
 
 @dataclass

@@ -34,7 +34,6 @@ from __future__ import annotations
 import numpy as np
 
 from sdbc_sim import compiled
-from sdbc_sim.drive import drive_body
 from sdbc_sim.physics import (
     ANCHOR_MASS_FACTOR,
     DRIVE_COLUMNS,
@@ -103,59 +102,10 @@ def _blocked(
     return False
 
 
-def move_body(
-    state: np.ndarray,
-    radii: np.ndarray,
-    walls: np.ndarray,
-    boxes: np.ndarray,
-    collides: np.ndarray,
-    row: int,
-    first: int,
-    i: int,
-    heading: float,
-    vx: float,
-    vy: float,
-    dt: float,
-    sidestep: float,
-) -> None:  # pragma: no cover - compiled into its loops
-    """Body ``i`` of the trial whose rows start at ``first`` (state row
-    ``row``) takes ``heading`` and moves by its commanded velocity (vx, vy)
-    times ``dt``, sideways at ``sidestep`` of it to the left, or to the right,
-    or not at all (module docstring). Its state row (x, y, angle, vx, vy) gets
-    the new centre, the heading, and the displacement made over ``dt`` as the
-    velocity."""
-    state[row, 2] = heading
-    dx = vx * dt
-    dy = vy * dt
-    x = state[row, 0]
-    y = state[row, 1]
-    if (
-        collides[row]
-        and (dx != 0.0 or dy != 0.0)
-        and _blocked(state, radii, walls, boxes, collides, first, i, x + dx, y + dy)
-    ):
-        # A quarter turn to the left, then to the right, at reduced speed.
-        sx = -dy * sidestep
-        sy = dx * sidestep
-        dx = 0.0
-        dy = 0.0
-        for side in (1.0, -1.0):
-            to_x = x + side * sx
-            to_y = y + side * sy
-            if not _blocked(state, radii, walls, boxes, collides, first, i, to_x, to_y):
-                dx = side * sx
-                dy = side * sy
-                break
-    state[row, 0] = x + dx
-    state[row, 1] = y + dy
-    state[row, 3] = dx / dt
-    state[row, 4] = dy / dt
-
-
 @compiled.compiled(
     "void(float64[:, ::1], float64[:, ::1], float64[::1], float64[:, :, ::1], "
     "float64[:, ::1], boolean[::1], intp, intp, intp, float64, float64)",
-    calls=(move_body, _blocked, segment_offset),
+    calls=(_blocked, segment_offset),
 )
 def _move(
     state: np.ndarray,
@@ -170,79 +120,43 @@ def _move(
     dt: float,
     sidestep: float,
 ) -> None:  # pragma: no cover - compiled; tested against its Python form
-    """One step of every trial: each body moves (:func:`move_body`) with the
-    heading and commanded velocity of its drive row."""
+    """One step of every trial: each body takes the heading of its drive row and
+    moves by its commanded velocity times ``dt``, sideways at ``sidestep`` of it
+    to the left, or to the right, or not at all (module docstring). The state
+    rows (x, y, angle, vx, vy) get the new centre, the heading, and the
+    displacement made over ``dt`` as the velocity."""
     n = radii.shape[0]
     for row in range(state.shape[0]):
         first = row - row % n
-        move_body(
-            state,
-            radii,
-            walls,
-            boxes,
-            collides,
-            row,
-            first,
-            row - first,
-            drive[row, angle_column],
-            drive[row, x_column],
-            drive[row, y_column],
-            dt,
-            sidestep,
-        )
-
-
-@compiled.compiled(
-    "void(float64[:, ::1], float64[:, :], float64[:, :], float64[:, :], "
-    "boolean[:, :], boolean[::1], float64[:, ::1], float64[:, ::1], "
-    "float64[:, ::1], float64[::1], float64[:, :, ::1], float64[:, ::1], "
-    "boolean[::1], float64, float64)",
-    calls=(drive_body, move_body, _blocked, segment_offset),
-)
-def _drive_and_move(
-    state: np.ndarray,
-    angle: np.ndarray,
-    speed: np.ndarray,
-    turn: np.ndarray,
-    enabled: np.ndarray,
-    running: np.ndarray,
-    turn_rate: np.ndarray,
-    cos_h: np.ndarray,
-    sin_h: np.ndarray,
-    radii: np.ndarray,
-    walls: np.ndarray,
-    boxes: np.ndarray,
-    collides: np.ndarray,
-    dt: float,
-    sidestep: float,
-) -> None:  # pragma: no cover - compiled; tested against the drive, then _move
-    """One step of every trial from the robots' speeds and turns (B, R): each
-    body's drive (:func:`~sdbc_sim.drive.drive_body`), then at once its move
-    (:func:`move_body`). A body's drive reads only its own row and its move
-    only the positions of the others, so this is the drive rows of the whole
-    batch followed by :func:`_move`, in one pass and without the rows between."""
-    n = radii.shape[0]
-    for t in range(angle.shape[0]):
-        first = t * n
-        for i in range(n):
-            h, vx, vy = drive_body(
-                angle, speed, turn, enabled, running, dt, turn_rate, cos_h, sin_h, t, i
-            )
-            move_body(
-                state,
-                radii,
-                walls,
-                boxes,
-                collides,
-                first + i,
-                first,
-                i,
-                h,
-                vx,
-                vy,
-                dt,
-                sidestep,
-            )
+        i = row - first
+        state[row, 2] = drive[row, angle_column]
+        dx = drive[row, x_column] * dt
+        dy = drive[row, y_column] * dt
+        x = state[row, 0]
+        y = state[row, 1]
+        if (
+            collides[row]
+            and (dx != 0.0 or dy != 0.0)
+            and _blocked(state, radii, walls, boxes, collides, first, i, x + dx, y + dy)
+        ):
+            # A quarter turn to the left, then to the right, at reduced speed.
+            sx = -dy * sidestep
+            sy = dx * sidestep
+            dx = 0.0
+            dy = 0.0
+            for side in (1.0, -1.0):
+                to_x = x + side * sx
+                to_y = y + side * sy
+                if not _blocked(
+                    state, radii, walls, boxes, collides, first, i, to_x, to_y
+                ):
+                    dx = side * sx
+                    dy = side * sy
+                    break
+        state[row, 0] = x + dx
+        state[row, 1] = y + dy
+        state[row, 3] = dx / dt
+        state[row, 4] = dy / dt
 
 
 class KinematicTrials:
@@ -335,41 +249,6 @@ class KinematicTrials:
             col.angle,
             col.x,
             col.y,
-            self.settings.dt,
-            SIDESTEP_SPEED,
-        )
-        np.copyto(state, self._state)
-
-    def drive_and_step(
-        self,
-        angle: np.ndarray,
-        speed: np.ndarray,
-        turn: np.ndarray,
-        enabled: np.ndarray,
-        running: np.ndarray,
-        turn_rate: np.ndarray,
-        cos_h: np.ndarray,
-        sin_h: np.ndarray,
-        state: np.ndarray,
-    ) -> None:
-        """:meth:`step` with the drive rows the engine would have written from
-        the robots' ``speed`` and ``turn`` (B, R), each body driven and moved in
-        one pass (``_drive_and_move``); fills ``turn_rate``, ``cos_h``,
-        ``sin_h`` (B, R) as the drive does, and ``state`` as :meth:`read`."""
-        _drive_and_move(
-            self._state,
-            angle,
-            speed,
-            turn,
-            enabled,
-            running,
-            turn_rate,
-            cos_h,
-            sin_h,
-            self._radii,
-            self._walls,
-            self._wall_boxes,
-            self._collides,
             self.settings.dt,
             SIDESTEP_SPEED,
         )
