@@ -8,6 +8,8 @@ step of predator-prey makes about 350 of them. The loops here do the same IEEE
 operations in the same order for the common shapes, so their totals are the same
 to the bit:
 
+- :func:`occupancy`: a group's absent slots and its size (eq. 2, and the counts
+  of eqs. 3 to 5);
 - :func:`mean_state_totals`: every attribute's sum over a group's present
   entities (the numerators of eq. 3);
 - :func:`disc_pair_total`: the sum of f_D over a list of disc pairs (circles or
@@ -55,6 +57,30 @@ def pair_slots(first: int, second: int) -> tuple[np.ndarray, np.ndarray]:
         np.repeat(np.arange(first, dtype=np.int64), second),
         np.tile(np.arange(second, dtype=np.int64), first),
     )
+
+
+@compiled("void(boolean[:, :], boolean[:, ::1], float64[::1])")
+def occupancy(
+    present: np.ndarray, absent: np.ndarray, size: np.ndarray
+) -> None:  # pragma: no cover - compiled; tested through StepFeatures
+    """``absent[s, b] = not present[b, s]`` and ``size[b]`` the number of slots
+    present in trial ``b``, in one pass instead of numpy's transpose, negation,
+    conversion and sum over slots (the sizes are whole numbers, exact in any
+    order).
+
+    Args:
+        present: (B|1, S), a group's presence as the task state holds it.
+        absent: (S, B|1), the slot-major absence the other loops take.
+        size: (B|1,), the group's size as a float.
+    """
+    for b in range(present.shape[0]):
+        n = 0.0
+        for s in range(present.shape[1]):
+            here = present[b, s]
+            absent[s, b] = not here
+            if here:
+                n += 1.0
+        size[b] = n
 
 
 @compiled("void(float64[:, :, :], boolean[:, :], float64[:, :])")
