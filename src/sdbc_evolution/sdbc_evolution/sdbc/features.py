@@ -623,8 +623,8 @@ class StepFeatures:
                     source = state.groups[g].present
                     slot_major = source.shape[::-1]
                     absent[g] = ws.get(("absent", g), slot_major, np.bool_)
-                    sizes[g] = ws.get(("size", g), slot_major[1:])
-                    loops.occupancy(source, absent[g], sizes[g])
+                    sizes[g] = counted = ws.get(("size", g), slot_major[1:])
+                    loops.occupancy(source, absent[g], counted)
                 else:
                     p = presence(g)
                     absent[g] = np.logical_not(
