@@ -598,6 +598,7 @@ class StepFeatures:
         if trials is not None:
             state = self._gather(state, trials)
         total, count = self._buffers(state.active.shape[0])
+        fused = self.fused
         present: dict[int, np.ndarray] = {}
         absent: dict[int, np.ndarray] = {}
         sizes: dict[int, np.ndarray | float] = {}
@@ -617,16 +618,26 @@ class StepFeatures:
 
         def absence(g: int) -> np.ndarray:
             if g not in absent:
-                p = presence(g)
-                absent[g] = np.logical_not(
-                    p, out=ws.get(("absent", g), p.shape, np.bool_)
-                )
+                if fused and not full[g]:
+                    # With the size, in one pass over the presence.
+                    source = state.groups[g].present
+                    slot_major = source.shape[::-1]
+                    absent[g] = ws.get(("absent", g), slot_major, np.bool_)
+                    sizes[g] = counted = ws.get(("size", g), slot_major[1:])
+                    loops.occupancy(source, absent[g], counted)
+                else:
+                    p = presence(g)
+                    absent[g] = np.logical_not(
+                        p, out=ws.get(("absent", g), p.shape, np.bool_)
+                    )
             return absent[g]
 
         def size(g: int) -> np.ndarray | float:
             if g not in sizes:
                 if full[g]:
                     sizes[g] = float(groups[g].max_size)
+                elif fused:
+                    absence(g)
                 else:
                     p = presence(g)
                     out = ws.get(("size", g), p.shape[1:])
@@ -671,14 +682,14 @@ class StepFeatures:
         def mask(g: int) -> np.ndarray:
             return loops.none_absent(slot_counts[g]) if full[g] else absence(g)
 
-        fused = self.fused
         constant = self._constant_counts
         for f, feature in enumerate(self.features):
             g = feature.group
             spec = groups[g]
             if feature.kind is FeatureKind.GROUP_SIZE:
                 # Eq. 2.
-                total[f] = (size(g) - spec.min_size) / (spec.max_size - spec.min_size)
+                np.subtract(size(g), spec.min_size, out=total[f])
+                total[f] /= spec.max_size - spec.min_size
             elif feature.kind is FeatureKind.MEAN_STATE:
                 # Eq. 3: one sum over slots gives every attribute's numerator, into
                 # the group's consecutive attribute rows.
@@ -689,8 +700,8 @@ class StepFeatures:
                         loops.mean_state_totals(attributes, mask(g), rows)
                     else:
                         self._mean_state_totals(state, g, absence, rows)
-                if f not in constant:
-                    count[f] = size(g)
+                    if f not in constant:
+                        count[f : f + len(spec.attributes)] = size(g)
             elif feature.kind is FeatureKind.DISPERSION:
                 # Eq. 4 as the mean over unordered pairs i < j of present entities.
                 i, j = slot_pairs(slot_counts[g], None)
@@ -715,8 +726,11 @@ class StepFeatures:
                         _zero_where(d, invalid)
                     reduce_into(f, d, (0,))
                 if not full[g]:
+                    # n (n - 1) / 2 in place.
                     n = size(g)
-                    count[f] = n * (n - 1.0) / 2.0
+                    np.subtract(n, 1.0, out=count[f])
+                    np.multiply(n, count[f], out=count[f])
+                    count[f] /= 2.0
             elif feature.kind is FeatureKind.STATE_DEVIATION:
                 defined = _deviation(state.groups[g], feature.state_attribute, total[f])
                 np.copyto(count[f], defined)
@@ -756,7 +770,7 @@ class StepFeatures:
                         _zero_where(d, invalid)
                     reduce_into(f, d, (0, 1))
                 if not (full[g] and full[h]):
-                    count[f] = size(g) * size(h)
+                    np.multiply(size(g), size(h), out=count[f])
         return total, count
 
     def _check_full(self, state: TaskState, g: int) -> None:

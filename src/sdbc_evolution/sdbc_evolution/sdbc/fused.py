@@ -8,6 +8,8 @@ step of predator-prey makes about 350 of them. The loops here do the same IEEE
 operations in the same order for the common shapes, so their totals are the same
 to the bit:
 
+- :func:`occupancy`: a group's absent slots and its size (eq. 2, and the counts
+  of eqs. 3 to 5);
 - :func:`mean_state_totals`: every attribute's sum over a group's present
   entities (the numerators of eq. 3);
 - :func:`disc_pair_total`: the sum of f_D over a list of disc pairs (circles or
@@ -57,7 +59,42 @@ def pair_slots(first: int, second: int) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
-@compiled("void(float64[:, :, :], boolean[:, :], float64[:, :])")
+@compiled("void(boolean[:, :], boolean[:, ::1], float64[::1])")
+def occupancy(
+    present: np.ndarray, absent: np.ndarray, size: np.ndarray
+) -> None:  # pragma: no cover - compiled; tested through StepFeatures
+    """``absent[s, b] = not present[b, s]`` and ``size[b]`` the number of slots
+    present in trial ``b``, in one pass instead of numpy's transpose, negation,
+    conversion and sum over slots (the sizes are whole numbers, exact in any
+    order).
+
+    Args:
+        present: (B|1, S), a group's presence as the task state holds it.
+        absent: (S, B|1), the slot-major absence the other loops take.
+        size: (B|1,), the group's size as a float.
+    """
+    for b in range(present.shape[0]):
+        n = 0.0
+        for s in range(present.shape[1]):
+            here = present[b, s]
+            absent[s, b] = not here
+            if here:
+                n += 1.0
+        size[b] = n
+
+
+def batch_row(array: np.ndarray, slot: int, spare: np.ndarray) -> np.ndarray:
+    """Row ``slot`` of an (S, B|1) array as B values: the row itself, or its one
+    value copied into ``spare`` (B,) when the array is shared by every trial. The
+    loops below then run over plain contiguous rows, which the compiler turns into
+    vector instructions (each trial's operations stay the same and in order)."""
+    if array.shape[1] == spare.shape[0]:
+        return array[slot]
+    spare[:] = array[slot, 0]
+    return spare
+
+
+@compiled("void(float64[:, :, :], boolean[:, :], float64[:, :])", calls=(batch_row,))
 def mean_state_totals(
     attributes: np.ndarray, absent: np.ndarray, out: np.ndarray
 ) -> None:  # pragma: no cover - compiled; tested through StepFeatures
@@ -70,28 +107,24 @@ def mean_state_totals(
         absent: (S, B|1), True where a slot holds no entity.
         out: (A, B), the attributes' rows of the feature totals.
     """
-    shared = attributes.shape[0] == 1
-    shared_mask = absent.shape[1] == 1
+    # A slot at a time over every trial's row, as the distance loops go: the
+    # compiler turns the rows into vector instructions; trial by trial (the
+    # sum over a trial's slots innermost) they stayed scalar.
+    n = out.shape[1]
+    spare = np.empty(n)
+    spare_absent = np.empty(n, dtype=np.bool_)
     for a in range(out.shape[0]):
-        for b in range(out.shape[1]):
-            row = 0 if shared else b
-            col = 0 if shared_mask else b
-            total = 0.0
-            for s in range(attributes.shape[1]):
-                value = 0.0 if absent[s, col] else attributes[row, s, a]
-                total = value if s == 0 else total + value
-            out[a, b] = total
-
-
-def batch_row(array: np.ndarray, slot: int, spare: np.ndarray) -> np.ndarray:
-    """Row ``slot`` of an (S, B|1) array as B values: the row itself, or its one
-    value copied into ``spare`` (B,) when the array is shared by every trial. The
-    loops below then run over plain contiguous rows, which the compiler turns into
-    vector instructions (each trial's operations stay the same and in order)."""
-    if array.shape[1] == spare.shape[0]:
-        return array[slot]
-    spare[:] = array[slot, 0]
-    return spare
+        slots = attributes[:, :, a].T
+        total = out[a]
+        for s in range(slots.shape[0]):
+            values = batch_row(slots, s, spare)
+            skip = batch_row(absent, s, spare_absent)
+            if s == 0:
+                for b in range(n):
+                    total[b] = 0.0 if skip[b] else values[b]
+            else:
+                for b in range(n):
+                    total[b] = total[b] + (0.0 if skip[b] else values[b])
 
 
 def add_term(
