@@ -45,6 +45,12 @@ from typing import Any, TypeVar, cast
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+_HELPER_OPTIONS = {"error_model": "numpy", "inline": "always"}
+"""How a loop's helpers are compiled. Inlined into the loop in numba's own
+representation: LLVM left many calls in place, each passing its arrays' whole
+descriptors, which cost gate escape's step several percent."""
+
+
 class _Loop:
     """A Python function and the numba kernel compiled from it once loaded."""
 
@@ -74,7 +80,7 @@ class _Loop:
                 # compiled code, and _forget_if_changed keeps it current.
                 scopes: list[dict[str, Any]] = []
                 kernels = {
-                    helper.__name__: numba.njit(error_model="numpy")(
+                    helper.__name__: numba.njit(**_HELPER_OPTIONS)(
                         _rebound(helper, scopes)
                     )
                     for helper in self.calls
@@ -95,13 +101,14 @@ class _Loop:
 def _forget_if_changed(
     fn: Callable[..., Any], helpers: tuple[Callable[..., Any], ...]
 ) -> None:
-    """Empties numba's on-disk cache of the loop ``fn`` when its helpers' code
-    changed since it was cached. numba keeps a loop's cache while the loop's own
-    file is unchanged, and a cached loop holds its helpers' compiled code: a
-    helper edited in another module would otherwise go on running as it was."""
+    """Empties numba's on-disk cache of the loop ``fn`` when its helpers' code,
+    or the options they are compiled with, changed since it was cached. numba
+    keeps a loop's cache while the loop's own file is unchanged, and a cached
+    loop holds its helpers' compiled code: a helper edited in another module
+    would otherwise go on running as it was."""
     from numba.core.caching import FunctionCache
 
-    digest = hashlib.sha256()
+    digest = hashlib.sha256(repr(sorted(_HELPER_OPTIONS.items())).encode())
     for helper in helpers:
         code = helper.__code__
         digest.update(f"{helper.__module__}.{helper.__qualname__}".encode())
