@@ -366,6 +366,13 @@ def test_compiled_drive_equals_the_array_formulation(actuation: str) -> None:
         sim.step()
     shape = sim.bodies.angle.shape
     sim.bodies.angle[:] = rng.uniform(-2000.0, 2000.0, shape)
+    # Headings of zero of either sign in trials that have ended: their turn is
+    # a zero, which changes the sign of -0.0, so the kept sines must not serve.
+    sim.bodies.angle[0] = -0.0
+    sim.bodies.angle[1] = 0.0
+    # The engine keeps the cosines and sines of the headings it holds.
+    sim._cos[:] = np.cos(sim.bodies.angle)
+    sim._sin[:] = np.sin(sim.bodies.angle)
     sim.bodies.enabled[:] = rng.random(shape) < 0.8
     sim._running[: b // 4] = False
     speed = rng.uniform(0.0, 2.0, shape)
@@ -375,6 +382,20 @@ def test_compiled_drive_equals_the_array_formulation(actuation: str) -> None:
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(g.view(np.int64), w.view(np.int64))
     assert (want[1] == 0.0).any() and np.signbit(want[1][want[1] == 0.0]).any()
+
+
+@pytest.mark.parametrize("model", ["rigid", "kinematic"])
+def test_the_first_headings_cosines_and_sines_are_numpys(model: str) -> None:
+    """The engine takes its first headings' cosines and sines in a compiled
+    loop from the C library numpy's float64 ``cos`` and ``sin`` call here; a
+    body that never turns keeps them, so they must be those bits."""
+    task = make_task("gate_escape", **CROWDED)
+    sim = BatchSimulation(task, np.arange(50), settings=model_settings(model))
+    for got, want in (
+        (sim._cos, np.cos(sim.bodies.angle)),
+        (sim._sin, np.sin(sim.bodies.angle)),
+    ):
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))
 
 
 def test_compiled_kinematics_equal_the_array_formulation() -> None:

@@ -141,8 +141,9 @@ class BatchSimulation:
         self._rows = np.empty((n * self._n_bodies, READ_WIDTH))
         self._turn_rate = np.zeros((n, self._n_bodies))
         self.spaces.read(self._rows)
-        self._cos = np.cos(self._rows[:, 2]).reshape(n, self._n_bodies)
-        self._sin = np.sin(self._rows[:, 2]).reshape(n, self._n_bodies)
+        self._cos = np.empty((n, self._n_bodies))
+        self._sin = np.empty((n, self._n_bodies))
+        _headings(self._rows[:, 2].reshape(n, self._n_bodies), self._cos, self._sin)
         self.bodies = self._body_views(
             np.ones((n, self._n_bodies), dtype=bool),
             np.zeros((n, self._n_bodies), dtype=bool),
@@ -409,8 +410,12 @@ def _drive_rows(
     numpy: as whole arrays they were most of the drive's cost, and on the
     platforms we build for both call the same C library (glibc; the test compares
     them to the bit).
-    Every path to a heading's cosine after the first step goes through here, so
-    a trial alone, in a batch and live still agree whatever that library."""
+    Every path to a heading's cosine goes through here or :func:`_headings`
+    (the first), so a trial alone, in a batch and live still agree whatever
+    that library. A body that does not turn keeps the cosine and sine its
+    heading has (in resource sharing most bodies at most steps: robots out of
+    energy or stopped), so ``cos_h`` and ``sin_h`` must hold those of ``angle``
+    on entry, as the engine keeps them."""
     n = angle.shape[1]
     for t in range(angle.shape[0]):
         run = running[t]
@@ -418,11 +423,18 @@ def _drive_rows(
             m = 1.0 if enabled[t, i] and run else 0.0
             tm = turn[t, i] * m
             turn_rate[t, i] = tm / dt
-            h = angle[t, i] + tm
-            c = math.cos(h)
-            s = math.sin(h)
-            cos_h[t, i] = c
-            sin_h[t, i] = s
+            a = angle[t, i]
+            h = a + tm
+            if tm == 0.0 and abs(a) > 0.0:
+                # h is a to the bit (a nonzero plus a zero of either sign),
+                # whose cosine and sine the arrays hold already.
+                c = cos_h[t, i]
+                s = sin_h[t, i]
+            else:
+                c = math.cos(h)
+                s = math.sin(h)
+                cos_h[t, i] = c
+                sin_h[t, i] = s
             v = speed[t, i] * m
             row = t * n + i
             drive[row, col_angle] = h
@@ -562,3 +574,15 @@ class TrialStepper:
             raise RuntimeError("result: the trial has not ended")
         sim = self.sim
         return float(sim.fitness[0]), sim.characterisation[0].copy(), int(sim.length[0])
+
+
+@compiled("void(float64[:, :], float64[:, ::1], float64[:, ::1])")
+def _headings(
+    angle: np.ndarray, cos_h: np.ndarray, sin_h: np.ndarray
+) -> None:  # pragma: no cover - compiled; tested against numpy's cos and sin
+    """The cosines and sines of the bodies' first headings (B, R), from the C
+    library :func:`_drive_rows` takes them from, which keeps them from then on."""
+    for t in range(angle.shape[0]):
+        for i in range(angle.shape[1]):
+            cos_h[t, i] = math.cos(angle[t, i])
+            sin_h[t, i] = math.sin(angle[t, i])
