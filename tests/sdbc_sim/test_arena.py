@@ -6,7 +6,13 @@ import math
 
 import numpy as np
 import pytest
-from sdbc_sim.arena import WallRays, speed_and_turn, square_walls
+from sdbc_sim.arena import (
+    WallRays,
+    draw_team,
+    speed_and_turn,
+    square_walls,
+    uniform,
+)
 from sdbc_sim.sensors import normalised_reading, ray_segment_distance
 from sdbc_sim.tasks import make_task
 
@@ -85,3 +91,39 @@ def test_compiled_speed_and_turn_equal_the_array_formulation() -> None:
         want_turn = (2.0 * view[..., 1] - 1.0) * 1.57
         assert np.array_equal(speed.view(np.int64), want_speed.view(np.int64))
         assert np.array_equal(turn.view(np.int64), want_turn.view(np.int64))
+
+
+def test_team_draws_are_numpys_uniform_draws() -> None:
+    """draw_team scales the generator's doubles itself; its starts, and the
+    stream it leaves, are those of ``rng.uniform`` drawn position by position
+    (x and y together) and heading by heading, redrawn while too close."""
+
+    def with_uniform(rng, n, low, high, separation, taken):
+        position, heading = np.empty((n, 2)), np.empty(n)
+        for i in range(n):
+            while True:
+                p = tuple(rng.uniform(low, high, size=2).tolist())
+                if all(math.dist(q, p) >= separation for q in taken):
+                    break
+            taken.append(p)
+            position[i], heading[i] = p, rng.uniform(-np.pi, np.pi)
+        return position, heading
+
+    for seed in range(300):
+        for n, low, high, separation in [(3, 2.5, 97.5, 10.0), (8, -3.0, 3.0, 1.0)]:
+            want_rng, got_rng = np.random.default_rng(seed), np.random.default_rng(seed)
+            want = with_uniform(want_rng, n, low, high, separation, [(0.5, 0.5)])
+            got = draw_team(got_rng, n, low, high, separation, [(0.5, 0.5)], "t")
+            for g, w in zip(got, want, strict=True):
+                assert np.array_equal(g.view(np.int64), w.view(np.int64))
+            assert got_rng.random() == want_rng.random()
+
+
+@pytest.mark.parametrize(
+    ("low", "high"), [(0.0, 2.0 * math.pi), (-math.pi, math.pi), (2.5, 97.5)]
+)
+def test_uniform_is_numpys_uniform(low: float, high: float) -> None:
+    want_rng, got_rng = np.random.default_rng(3), np.random.default_rng(3)
+    want = want_rng.uniform(low, high, 20000)
+    got = np.array([uniform(got_rng, low, high) for _ in range(20000)])
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))

@@ -55,7 +55,7 @@ from typing import Literal
 
 import numpy as np
 
-from sdbc_sim.arena import WallRays, speed_and_turn, wall_group, wall_state
+from sdbc_sim.arena import WallRays, speed_and_turn, uniform, wall_group, wall_state
 from sdbc_sim.compiled import compiled
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
@@ -258,7 +258,7 @@ class GateEscape(Task[GateEscapeTrials]):
             for i in range(n):
                 ring = (i + 1) * c.start_spacing
                 for _ in range(_MAX_START_DRAWS):
-                    a = rng.uniform(0.0, TWO_PI)
+                    a = uniform(rng, 0.0, TWO_PI)
                     px, py = gx + ring * math.cos(a), gy + ring * math.sin(a)
                     inside = r <= px <= s - r and r <= py <= s - r
                     if inside and all(
@@ -271,7 +271,7 @@ class GateEscape(Task[GateEscapeTrials]):
                         f"{_MAX_START_DRAWS} draws"
                     )
                 placed.append((px, py))
-                angle[t, i] = rng.uniform(-np.pi, np.pi)
+                angle[t, i] = uniform(rng, -np.pi, np.pi)
             position[t] = placed
         trials = GateEscapeTrials(
             escaped=np.zeros((b, n), dtype=bool),
