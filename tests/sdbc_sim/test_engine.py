@@ -425,3 +425,15 @@ def test_compiled_kinematics_equal_the_array_formulation() -> None:
         got[..., :4].view(np.int64), want[..., :4].view(np.int64)
     )
     assert np.isinf(want[..., 3]).any() and np.isnan(want[..., 3]).any()
+
+
+@pytest.mark.parametrize("name", ["gate_escape", "resource_sharing", "foraging"])
+def test_trial_b_starts_from_default_rng_of_its_seed(name: str) -> None:
+    """The engine builds each trial's generator as Generator(PCG64(seed)), what
+    numpy documents ``default_rng(seed)`` to be; the starts are those."""
+    task = make_task(name)
+    seeds = np.array([0, 7, 2**31 - 2, 123456789])
+    sim = BatchSimulation(task, seeds, settings=model_settings("kinematic"))
+    _, position, angle = task.reset([np.random.default_rng(int(s)) for s in seeds])
+    assert np.array_equal(sim.bodies.position, position)
+    assert np.array_equal(sim.bodies.angle, angle)

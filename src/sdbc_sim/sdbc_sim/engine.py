@@ -124,7 +124,9 @@ class BatchSimulation:
             if g.shape[0] != n:
                 raise ValueError(f"genomes: {g.shape[0]} genomes for {n} trials")
             self._networks = TeamNetworks(task.network, g)
-        rngs = [np.random.default_rng(int(s)) for s in seeds]
+        # default_rng(s) is documented as Generator(PCG64(s)); built directly it
+        # costs a third less, which a batch of short trials feels.
+        rngs = [np.random.Generator(np.random.PCG64(int(s))) for s in seeds]
         self.trials, position, angle = task.reset(rngs)
         if position.shape != (n, self._n_bodies, 2) or angle.shape != (
             n,
