@@ -407,7 +407,7 @@ def _drive_rows(
     drive row (h, 0, v cos h, v sin h) with v = speed m, the operations of the
     array form (``tests/sdbc_sim/test_engine.py``) in its order.
 
-    Unlike most loops (:mod:`sdbc_sim.compiled` names the two exceptions), this
+    Unlike most loops (:mod:`sdbc_sim.compiled` names the exceptions), this
     one takes its cosine and sine from the C library numba calls rather than from
     numpy: as whole arrays they were most of the drive's cost, and on the
     platforms we build for both call the same C library (glibc; the test compares
