@@ -127,3 +127,23 @@ def test_uniform_is_numpys_uniform(low: float, high: float) -> None:
     want = want_rng.uniform(low, high, 20000)
     got = np.array([uniform(got_rng, low, high) for _ in range(20000)])
     assert np.array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_wall_rays_refuse_an_out_they_cannot_fill() -> None:
+    """The loop writes into the whole C-ordered sensor array from ``column``:
+    an array of another type or order, or without room for every ray from that
+    column, is refused in one line naming what it needs."""
+    rays = make_task("gate_escape")._wall_rays
+    b, n = 3, 4
+    args = (np.full((b, n, 2), 100.0), np.ones((b, n)), np.zeros((b, n)))
+    fine = np.empty((b, n, 11))
+    assert rays.read(*args, out=fine, column=7) is fine
+    for out, column in [
+        (np.empty((b, n, 11)), 8),
+        (np.empty((b, n, 11)), -1),
+        (np.empty((b, n, 11), dtype=np.float32), 7),
+        (np.empty((n, b, 11)).transpose(1, 0, 2), 7),
+        (np.empty((b, n + 1, 11)), 7),
+    ]:
+        with pytest.raises(ValueError, match=r"^WallRays.read: out must be C-ordered"):
+            rays.read(*args, out=out, column=column)
