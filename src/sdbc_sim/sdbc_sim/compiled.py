@@ -45,7 +45,7 @@ from typing import Any, TypeVar, cast
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-_HELPER_OPTIONS = {"error_model": "numpy", "inline": "always"}
+_HELPER_OPTIONS: dict[str, Any] = {"error_model": "numpy", "inline": "always"}
 """How a loop's helpers are compiled. Inlined into the loop in numba's own
 representation: LLVM left many calls in place, each passing its arrays' whole
 descriptors, which cost gate escape's step several percent."""
