@@ -188,13 +188,11 @@ def sector_minimum(
         (n_rows, n_arcs) minimum reading per robot and sector (``out`` if given).
     """
     if out is None:
-        out = np.full((n_rows, n_arcs), empty)
+        out = np.empty((n_rows, n_arcs))
     elif out.shape != (n_rows, n_arcs):
         raise ValueError(
             f"sector_minimum: out has shape {out.shape}, need {(n_rows, n_arcs)}"
         )
-    else:
-        out.fill(empty)
     width = TWO_PI / n_arcs
     _sector_minimum(
         np.ascontiguousarray(rows, dtype=np.intp),
@@ -202,6 +200,7 @@ def sector_minimum(
         np.ascontiguousarray(readings, dtype=np.float64),
         np.pi + 0.5 * width,
         1.0 / width,
+        empty,
         out,
     )
     return out
@@ -232,7 +231,8 @@ def row_view(a: np.ndarray, width: int, name: str) -> np.ndarray:
 
 
 @compiled(
-    "void(intp[::1], float64[::1], float64[::1], float64, float64, float64[:, :])"
+    "void(intp[::1], float64[::1], float64[::1], float64, float64, float64, "
+    "float64[:, :])"
 )
 def _sector_minimum(
     rows: np.ndarray,
@@ -240,12 +240,19 @@ def _sector_minimum(
     readings: np.ndarray,
     shift: float,
     per_width: float,
+    empty: float,
     out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled; tested through sector_minimum
-    """``out[row, arc] = min(out[row, arc], reading)`` per sensed object, the arc
-    as :func:`arc_index` computes it (``shift`` = pi + width / 2, ``per_width`` =
-    1 / width); a minimum does not depend on the order it is taken in."""
+    """``out`` filled with ``empty``, then ``out[row, arc] = min(out[row, arc],
+    reading)`` per sensed object, the arc as :func:`arc_index` computes it
+    (``shift`` = pi + width / 2, ``per_width`` = 1 / width); a minimum does not
+    depend on the order it is taken in. The fill is here because ``out`` is
+    usually a few strided columns of a task's sensor array, which numpy's
+    ``fill`` walks at several times this loop's cost."""
     n_arcs = out.shape[1]
+    for row in range(out.shape[0]):
+        for arc in range(n_arcs):
+            out[row, arc] = empty
     for k in range(rows.shape[0]):
         arc = int((bearings[k] + shift) * per_width)
         if arc >= n_arcs:

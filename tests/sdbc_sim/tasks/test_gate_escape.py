@@ -320,9 +320,9 @@ def test_compiled_sensor_and_rules_equal_the_array_formulation() -> None:
 
 
 def test_compiled_agent_attributes_equal_the_array_formulation() -> None:
-    """The Agent group's attributes in one pass: the kinematics, then "is
-    passing gate" by the array form's comparisons, NaN and the gate's edges
-    included."""
+    """The Agent group's attributes and centres in one pass: the kinematics,
+    then "is passing gate" by the array form's comparisons, NaN and the gate's
+    edges included; the centres are the positions to the bit."""
     task = GateEscape()
     rng = np.random.default_rng(3)
     b, n = 50, task.config.n_robots
@@ -340,8 +340,11 @@ def test_compiled_agent_attributes_equal_the_array_formulation() -> None:
     bodies.velocity[:] = rng.normal(size=(b, n, 2))
     bodies.angular_velocity[:] = rng.normal(size=(b, n))
     trials, _, _ = task.reset([np.random.default_rng(s) for s in range(b)])
-    agents = task.task_state(trials, bodies)[0].attributes
+    group = task.task_state(trials, bodies)[0]
+    agents = group.attributes
     pos = bodies.position
+    assert group.centres is not None
+    assert np.array_equal(group.centres.view(np.int64), pos.view(np.int64))
     want = bodies.kinematics(1)
     want[..., 4] = (
         (np.abs(pos[..., 0]) <= r)

@@ -355,6 +355,7 @@ class GateEscape(Task[GateEscapeTrials]):
         c = self.config
         pos = bodies.position
         agents = np.empty((*bodies.angle.shape, 5))
+        centres = np.empty((*bodies.angle.shape, 2))
         _agent_attributes(
             np.asarray(pos, dtype=np.float64),
             np.asarray(bodies.angular_velocity, dtype=np.float64),
@@ -363,13 +364,14 @@ class GateEscape(Task[GateEscapeTrials]):
             self.gate_low,
             self.gate_high,
             agents,
+            centres,
         )
         closing = (trials.open_step >= 0).astype(np.float64)[:, None, None]
         return (
             GroupState(
                 present=bodies.enabled.copy(),
                 attributes=agents,
-                centres=pos.copy(),
+                centres=centres,
                 radii=self._radii,
             ),
             GroupState(
@@ -501,7 +503,7 @@ def _escape_rules(
 
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64, float64, "
-    "float64, float64[:, :, ::1])",
+    "float64, float64[:, :, ::1], float64[:, :, ::1])",
     calls=(kinematics_row,),
 )
 def _agent_attributes(
@@ -512,16 +514,21 @@ def _agent_attributes(
     gate_low: float,
     gate_high: float,
     out: np.ndarray,
+    centres: np.ndarray,
 ) -> None:  # pragma: no cover - compiled; tested against the array formulation
     """The Agent group's attributes (B, N, 5) in one pass: the kinematics
     (:meth:`~sdbc_sim.task.BodyState.kinematics`), then "is passing gate", 1
     where ``|x| <= radius`` and ``gate_low < y < gate_high``, else 0 (the array
-    formulation's comparisons, ``tests/sdbc_sim/tasks/test_gate_escape.py``)."""
+    formulation's comparisons, ``tests/sdbc_sim/tasks/test_gate_escape.py``);
+    and the centres (B, N, 2), which a copy of the strided positions took as
+    long to make as this whole pass."""
     for t in range(out.shape[0]):
         for i in range(out.shape[1]):
             kinematics_row(position, angular_velocity, velocity, out, t, i)
             x = position[t, i, 0]
             y = position[t, i, 1]
+            centres[t, i, 0] = x
+            centres[t, i, 1] = y
             passing = abs(x) <= radius and y > gate_low and y < gate_high
             out[t, i, 4] = 1.0 if passing else 0.0
 
