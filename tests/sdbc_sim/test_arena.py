@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from sdbc_sim.arena import (
     WallRays,
+    _team_from_draws,
     draw_team,
     speed_and_turn,
     square_walls,
@@ -15,6 +16,8 @@ from sdbc_sim.arena import (
 )
 from sdbc_sim.sensors import normalised_reading, ray_segment_distance
 from sdbc_sim.tasks import make_task
+
+from sdbc_sim import compiled
 
 
 def array_wall_rays(rays: WallRays, pos: np.ndarray, cos_h, sin_h) -> np.ndarray:
@@ -93,10 +96,18 @@ def test_compiled_speed_and_turn_equal_the_array_formulation() -> None:
         assert np.array_equal(turn.view(np.int64), want_turn.view(np.int64))
 
 
-def test_team_draws_are_numpys_uniform_draws() -> None:
-    """draw_team scales the generator's doubles itself; its starts, and the
-    stream it leaves, are those of ``rng.uniform`` drawn position by position
-    (x and y together) and heading by heading, redrawn while too close."""
+@pytest.mark.parametrize("bulk", [False, True])
+def test_team_draws_are_numpys_uniform_draws(
+    bulk: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """draw_team scales the generator's doubles itself, one by one or, once the
+    loops are loaded, in bulk; either way its starts, and the stream it leaves
+    (a buffered half-word included), are those of ``rng.uniform`` drawn
+    position by position (x and y together) and heading by heading, redrawn
+    while too close."""
+    if bulk:
+        compiled.load()
+    monkeypatch.setattr(compiled, "loaded", lambda: bulk)
 
     def with_uniform(rng, n, low, high, separation, taken):
         position, heading = np.empty((n, 2)), np.empty(n)
@@ -112,11 +123,37 @@ def test_team_draws_are_numpys_uniform_draws() -> None:
     for seed in range(300):
         for n, low, high, separation in [(3, 2.5, 97.5, 10.0), (8, -3.0, 3.0, 1.0)]:
             want_rng, got_rng = np.random.default_rng(seed), np.random.default_rng(seed)
-            want = with_uniform(want_rng, n, low, high, separation, [(0.5, 0.5)])
-            got = draw_team(got_rng, n, low, high, separation, [(0.5, 0.5)], "t")
+            if seed % 2:
+                # Leaves half of a 64-bit word buffered for the next 32-bit draw.
+                for rng in (want_rng, got_rng):
+                    rng.integers(2**32, dtype=np.uint32)
+            want_taken, got_taken = [(0.5, 0.5)], [(0.5, 0.5)]
+            want = with_uniform(want_rng, n, low, high, separation, want_taken)
+            got = draw_team(got_rng, n, low, high, separation, got_taken, "t")
             for g, w in zip(got, want, strict=True):
                 assert np.array_equal(g.view(np.int64), w.view(np.int64))
+            assert got_taken == want_taken
+            assert got_rng.integers(2**32, dtype=np.uint32) == want_rng.integers(
+                2**32, dtype=np.uint32
+            )
             assert got_rng.random() == want_rng.random()
+
+
+def test_bulk_team_draws_leave_close_calls_and_short_draws_to_the_caller() -> None:
+    """The bulk loop refuses to decide a distance within a relative 1e-9 of the
+    separation (the C library's hypot and math.dist may round it apart) and
+    says when it runs out of doubles; draw_team then draws one by one."""
+    position, heading = np.empty((1, 2)), np.empty(1)
+    taken = np.zeros((1, 2))
+    # (0.6, 0.8) lies at 1 from the origin: a close call at separation 1.
+    u = np.array([0.6, 0.8, 0.5])
+    assert _team_from_draws(u, 0.0, 1.0, 1.0, taken, position, heading) == -2
+    assert _team_from_draws(u, 0.0, 1.0, 0.5, taken, position, heading) == 3
+    assert position.tolist() == [[0.6, 0.8]] and heading[0] == 0.0
+    assert _team_from_draws(u[:2], 0.0, 1.0, 0.5, taken, position, heading) == -1
+    # Rejected twice (too close), then accepted: 7 doubles.
+    u = np.array([0.1, 0.1, 0.2, 0.2, 0.9, 0.9, 0.5])
+    assert _team_from_draws(u, 0.0, 1.0, 0.5, taken, position, heading) == 7
 
 
 @pytest.mark.parametrize(

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sdbc_sim.compiled import compiled
+from sdbc_sim.compiled import compiled, load
 
 # Re-exported: the engine's callers sum trials up with it.
 from sdbc_sim.fitness import FITNESS_MEANS as FITNESS_MEANS
@@ -125,6 +125,8 @@ class BatchSimulation:
             if g.shape[0] != n:
                 raise ValueError(f"genomes: {g.shape[0]} genomes for {n} trials")
             self._networks = TeamNetworks(task.network, g)
+        # Before the starts are drawn, which use a loop once it is loaded.
+        load()
         rngs = trial_generators(seeds)
         self.trials, position, angle = task.reset(rngs)
         if position.shape != (n, self._n_bodies, 2) or angle.shape != (
