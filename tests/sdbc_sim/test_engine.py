@@ -12,6 +12,8 @@ from sdbc_sim.engine import (
     BatchSimulation,
     EngineSettings,
     TrialStepper,
+    _row_bytes,
+    _scatter_rows,
     controller_fitness,
 )
 from sdbc_sim.network import forward
@@ -437,3 +439,23 @@ def test_trial_b_starts_from_default_rng_of_its_seed(name: str) -> None:
     _, position, angle = task.reset([np.random.default_rng(int(s)) for s in seeds])
     assert np.array_equal(sim.bodies.position, position)
     assert np.array_equal(sim.bodies.angle, angle)
+
+
+@pytest.mark.parametrize("shape", [(7,), (7, 3), (7, 3, 6), (7, 3, 0), (7, 1, 2)])
+@pytest.mark.parametrize("dtype", [np.bool_, np.float64, np.int64])
+def test_rows_spread_over_the_batch_as_fancy_assignment_spreads_them(
+    shape: tuple[int, ...], dtype: type
+) -> None:
+    """The live trials' rows of a group, copied byte by byte into the whole
+    batch's buffer, as ``buf[live] = a`` would; NaN payloads kept."""
+    rng = np.random.default_rng(1)
+    a = rng.integers(-(2**62), 2**62, size=shape).astype(dtype)
+    if dtype is np.float64:
+        # NaNs with payloads, which an arithmetic copy could change.
+        a.view(np.int64).reshape(-1)[::3] = 0x7FF8_0000_0000_0001
+    live = np.array([0, 2, 3, 5, 8, 9, 11])
+    want = np.zeros((12, *shape[1:]), dtype)
+    got = want.copy()
+    want[live] = a
+    _scatter_rows(_row_bytes(a), live, _row_bytes(got))
+    assert np.array_equal(got.view(np.uint8), want.view(np.uint8))

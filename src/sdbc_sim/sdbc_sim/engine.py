@@ -376,9 +376,30 @@ class BatchSimulation:
             buf = self._full.get(key)
             if buf is None or buf.shape[1:] != a.shape[1:]:
                 buf = self._full[key] = np.zeros((self.n_trials, *a.shape[1:]), a.dtype)
-            buf[self.live] = a
+            if a.flags.c_contiguous:
+                # numpy's fancy assignment walked these small rows at several
+                # times the cost of copying their bytes.
+                _scatter_rows(_row_bytes(a), self.live, _row_bytes(buf))
+            else:
+                buf[self.live] = a
             out[name] = buf
         return GroupState(**out)
+
+
+def _row_bytes(a: np.ndarray) -> np.ndarray:
+    """A C-ordered array (rows, ...) as its rows' bytes (rows, row size)."""
+    return a.reshape(a.shape[0], math.prod(a.shape[1:])).view(np.uint8)
+
+
+@compiled("void(uint8[:, ::1], intp[::1], uint8[:, ::1])")
+def _scatter_rows(
+    src: np.ndarray, rows: np.ndarray, dst: np.ndarray
+) -> None:  # pragma: no cover - compiled; tested against fancy assignment
+    """``dst[rows[k]] = src[k]``, row by row, byte by byte."""
+    for k in range(rows.shape[0]):
+        row = rows[k]
+        for j in range(src.shape[1]):
+            dst[row, j] = src[k, j]
 
 
 @compiled(
