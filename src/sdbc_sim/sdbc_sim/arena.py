@@ -296,7 +296,7 @@ def _draw_team_in_bulk(
             return False
         if used >= 0:
             rng.random(used)
-            taken.extend((float(x), float(y)) for x, y in position)
+            taken.extend(map(tuple, position.tolist()))
             return True
     return False
 
