@@ -18,10 +18,13 @@ sys.path.append(str(BENCH))
 import common  # noqa: E402
 import engine as engine_bench  # noqa: E402
 import identity  # noqa: E402
+import replay  # noqa: E402
 from sdbc_sim.engine import BatchSimulation, EngineSettings  # noqa: E402
 from sdbc_sim.kinematic import KinematicTrials  # noqa: E402
 from sdbc_sim.physics import PhysicsSettings, TrialSpaces  # noqa: E402
 from sdbc_sim.tasks import make_task  # noqa: E402
+
+from sdbc_sim import compiled  # noqa: E402
 
 engine_profile = common.bench_module("profile")
 
@@ -82,6 +85,34 @@ def test_engine_bench_floor_times_each_model(model: str) -> None:
     assert [
         (c.read, c.step, c.separate) for c in (TrialSpaces, KinematicTrials)
     ] == saved
+
+
+def test_replay_times_recorded_calls_in_the_step_and_alone() -> None:
+    """The recorded loop's calls are timed in the step and alone, repeated and
+    varied; the loops are unwrapped after; a loop that is not there is named."""
+    call = compiled._Loop.__call__
+    settings = common.engine_settings(["model=kinematic"])
+    rows = replay.replay(
+        "gate_escape", 2, 2, 12, 0, settings, ["engine._drive_rows"], start=3, record=4
+    )
+    assert [r.name for r in rows] == ["engine._drive_rows"]
+    (row,) = rows
+    assert row.calls == 12
+    assert min(row.in_step, row.repeated, row.varied) > 0.0
+    assert compiled._Loop.__call__ is call
+    with pytest.raises(ValueError, match=r"no recorded calls of \['engine._nope'\]"):
+        replay.replay(
+            "gate_escape", 2, 2, 12, 0, settings, ["engine._nope"], start=3, record=4
+        )
+    assert compiled._Loop.__call__ is call
+
+
+def test_replay_copies_keep_a_views_strides() -> None:
+    rows = np.arange(40.0).reshape(8, 5)
+    column = rows[:, 2].reshape(2, 4)
+    copy = replay._copy_array(column)
+    assert copy.strides == column.strides and np.array_equal(copy, column)
+    assert not np.shares_memory(copy, rows)
 
 
 def test_physics_overrides() -> None:
