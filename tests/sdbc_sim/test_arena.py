@@ -169,7 +169,8 @@ def test_uniform_is_numpys_uniform(low: float, high: float) -> None:
 def test_wall_rays_refuse_an_out_they_cannot_fill() -> None:
     """The loop writes into the whole C-ordered sensor array from ``column``:
     an array of another type or order, or without room for every ray from that
-    column, is refused in one line naming what it needs."""
+    column, is refused in one line naming what it needs; so is a column
+    without an out."""
     rays = make_task("gate_escape")._wall_rays
     b, n = 3, 4
     args = (np.full((b, n, 2), 100.0), np.ones((b, n)), np.zeros((b, n)))
@@ -184,3 +185,5 @@ def test_wall_rays_refuse_an_out_they_cannot_fill() -> None:
     ]:
         with pytest.raises(ValueError, match=r"^WallRays.read: out must be C-ordered"):
             rays.read(*args, out=out, column=column)
+    with pytest.raises(ValueError, match="column 7 needs an out to write into"):
+        rays.read(*args, column=7)

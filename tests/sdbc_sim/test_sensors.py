@@ -196,9 +196,8 @@ def test_neighbour_sectors_equal_the_array_formulation(
 
     enabled = rng.random((b, n)) < 0.6
     wide = np.full((b, n, n_sectors + 3), np.nan)
-    got, got_counts = neighbour_sectors(
-        *args, enabled=enabled, out=wide[..., 2 : 2 + n_sectors]
-    )
+    got, got_counts = neighbour_sectors(*args, enabled=enabled, out=wide, column=2)
+    assert got is wide
     want, want_counts = array_neighbour_sectors(
         *args[:-1], visible & enabled[:, None, :]
     )
@@ -209,13 +208,25 @@ def test_neighbour_sectors_equal_the_array_formulation(
 
 
 def test_neighbour_sectors_refuse_an_out_they_cannot_fill() -> None:
-    """An ``out`` of the wrong shape, or one whose rows cannot be filled in place
-    (a reshape would copy it, and the readings would be lost), is an error."""
+    """An ``out`` without room for the sectors from ``column`` on, of another
+    type, or not C-ordered (the loop would fill a copy, and the readings would
+    be lost), is refused in one line naming what it needs; so is a column
+    without an out."""
     b, n = 3, 4
     args = (np.zeros((b, n, 2)), np.ones((b, n)), np.zeros((b, n)), 0.5, 3.0, 4)
     visible = ~np.eye(n, dtype=bool)
-    with pytest.raises(ValueError, match="out has shape"):
-        neighbour_sectors(*args, visible, out=np.empty((b, n, 3)))
-    strided = np.empty((n, b, 4)).transpose(1, 0, 2)
-    with pytest.raises(ValueError, match="cannot be filled in place"):
-        neighbour_sectors(*args, visible, out=strided)
+    need = r"neighbour_sectors: out must be C-ordered float64 \(3, 4, K\) with 4 "
+    fine = np.empty((b, n, 6))
+    assert neighbour_sectors(*args, visible, out=fine, column=2)[0] is fine
+    for out, column in [
+        (np.empty((b, n, 3)), 0),
+        (fine, 3),
+        (fine, -1),
+        (np.empty((b, n, 6), dtype=np.float32), 0),
+        (np.empty((n, b, 4)).transpose(1, 0, 2), 0),
+        (np.empty((b, n + 1, 4)), 0),
+    ]:
+        with pytest.raises(ValueError, match=need + f"columns from column {column}"):
+            neighbour_sectors(*args, visible, out=out, column=column)
+    with pytest.raises(ValueError, match="column 2 needs an out to write into"):
+        neighbour_sectors(*args, visible, column=2)

@@ -13,7 +13,7 @@ import numpy as np
 
 from sdbc_sim import compiled as compiled_loops
 from sdbc_sim.compiled import compiled
-from sdbc_sim.sensors import TWO_PI, ray_distance
+from sdbc_sim.sensors import TWO_PI, ray_distance, readings_out
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState
 
 MAX_START_DRAWS = 100_000
@@ -106,23 +106,11 @@ class WallRays:
 
         Raises:
             ValueError: If ``out`` is not a C-ordered float64 array of the
-                robots' shape with room for the rays from ``column`` on.
+                robots' shape with room for the rays from ``column`` on, or
+                ``column`` is given without it.
         """
         b, n = cos_heading.shape
-        if out is None:
-            out = np.empty((b, n, self.n_rays))
-        elif (
-            out.dtype != np.float64
-            or not out.flags.c_contiguous
-            or out.shape[:2] != (b, n)
-            or out.ndim != 3
-            or not 0 <= column <= out.shape[2] - self.n_rays
-        ):
-            raise ValueError(
-                f"WallRays.read: out must be C-ordered float64 ({b}, {n}, K) with "
-                f"{self.n_rays} columns from column {column}, got {out.dtype} "
-                f"{out.shape}"
-            )
+        out = readings_out(out, (b, n), self.n_rays, column, "WallRays.read")
         _wall_ray_readings(
             np.asarray(pos, dtype=np.float64).reshape(-1, 2),
             np.ascontiguousarray(cos_heading, dtype=np.float64).reshape(-1),

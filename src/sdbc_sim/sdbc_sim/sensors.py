@@ -170,6 +170,7 @@ def sector_minimum(
     n_arcs: int,
     empty: float = 1.0,
     out: np.ndarray | None = None,
+    column: int = 0,
 ) -> np.ndarray:
     """Per-sector minimum of the readings of sensed objects, sparse form (only the
     sensed ones, cheaper when few are).
@@ -181,18 +182,21 @@ def sector_minimum(
         n_rows: Number of robots.
         n_arcs: Number of sectors (see :func:`arc_index`).
         empty: Value of a sector that senses nothing.
-        out: (n_rows, n_arcs) float64 array to fill, possibly a view into a wider
-            one (see :func:`row_view`); None for a new one.
+        out: A C-ordered float64 (n_rows, W) array, such as a task's sensor
+            array with its robots' rows merged, written in its columns
+            ``column`` to ``column + n_arcs - 1``; None for a new (n_rows,
+            n_arcs) one.
+        column: The first column of ``out`` to write.
 
     Returns:
-        (n_rows, n_arcs) minimum reading per robot and sector (``out`` if given).
+        The minimum reading per robot and sector: the new (n_rows, n_arcs) array,
+        or ``out``.
+
+    Raises:
+        ValueError: If ``out`` is not such an array, or ``column`` is given
+            without it.
     """
-    if out is None:
-        out = np.empty((n_rows, n_arcs))
-    elif out.shape != (n_rows, n_arcs):
-        raise ValueError(
-            f"sector_minimum: out has shape {out.shape}, need {(n_rows, n_arcs)}"
-        )
+    out = readings_out(out, (n_rows,), n_arcs, column, "sector_minimum")
     width = TWO_PI / n_arcs
     _sector_minimum(
         np.ascontiguousarray(rows, dtype=np.intp),
@@ -202,37 +206,51 @@ def sector_minimum(
         1.0 / width,
         empty,
         out,
+        column,
+        n_arcs,
     )
     return out
 
 
-def row_view(a: np.ndarray, width: int, name: str) -> np.ndarray:
-    """``a`` (..., width) as a (rows, width) view of the same memory, for a
-    compiled loop to fill ``a`` through. A slice of the last axis of a C-ordered
-    array qualifies (a task passes the columns of its sensor array), so the loop
-    writes the readings where they belong instead of into a temporary that is
-    then copied there.
+def readings_out(
+    out: np.ndarray | None,
+    rows: tuple[int, ...],
+    width: int,
+    column: int,
+    name: str,
+) -> np.ndarray:
+    """The array a loop writes ``width`` readings per robot into from
+    ``column`` on: a new (*rows, width) one when ``out`` is None (``column``
+    must then be 0), else ``out``, checked to be a C-ordered float64 array of
+    shape (*rows, K) with ``column + width <= K``. A task hands its whole
+    sensor array and the first column rather than a view of its columns, whose
+    rows numba would compile with unknown strides.
 
     Raises:
-        ValueError: If ``a`` is not float64 of that width, or its leading axes
-            cannot merge without a copy (the loop would fill the copy).
+        ValueError: Naming ``name``, the shape needed and the one given.
     """
-    if a.dtype != np.float64 or a.shape[-1:] != (width,):
+    if out is None:
+        if column != 0:
+            raise ValueError(f"{name}: column {column} needs an out to write into")
+        return np.empty((*rows, width))
+    if (
+        out.dtype != np.float64
+        or not out.flags.c_contiguous
+        or out.ndim != len(rows) + 1
+        or out.shape[:-1] != rows
+        or not 0 <= column <= out.shape[-1] - width
+    ):
+        shape = ", ".join(map(str, rows))
         raise ValueError(
-            f"{name}: out must be float64 (..., {width}), got {a.dtype} {a.shape}"
+            f"{name}: out must be C-ordered float64 ({shape}, K) with {width} "
+            f"columns from column {column}, got {out.dtype} {out.shape}"
         )
-    flat = a.reshape(-1, width)
-    if flat.size and not np.may_share_memory(flat, a):
-        raise ValueError(
-            f"{name}: out of shape {a.shape} and strides {a.strides} cannot be "
-            "filled in place (its leading axes do not merge into one)"
-        )
-    return flat
+    return out
 
 
 @compiled(
     "void(intp[::1], float64[::1], float64[::1], float64, float64, float64, "
-    "float64[:, :])"
+    "float64[:, ::1], intp, intp)"
 )
 def _sector_minimum(
     rows: np.ndarray,
@@ -242,23 +260,25 @@ def _sector_minimum(
     per_width: float,
     empty: float,
     out: np.ndarray,
+    column: int,
+    n_arcs: int,
 ) -> None:  # pragma: no cover - compiled; tested through sector_minimum
-    """``out`` filled with ``empty``, then ``out[row, arc] = min(out[row, arc],
-    reading)`` per sensed object, the arc as :func:`arc_index` computes it
-    (``shift`` = pi + width / 2, ``per_width`` = 1 / width); a minimum does not
-    depend on the order it is taken in. The fill is here because ``out`` is
-    usually a few strided columns of a task's sensor array, which numpy's
-    ``fill`` walks at several times this loop's cost."""
-    n_arcs = out.shape[1]
+    """Columns ``column`` to ``column + n_arcs - 1`` of ``out`` filled with
+    ``empty``, then ``min(., reading)`` per sensed object in the column of its
+    arc, as :func:`arc_index` computes it (``shift`` = pi + width / 2,
+    ``per_width`` = 1 / width); a minimum does not depend on the order it is
+    taken in. The fill is here because those are a few columns of a task's
+    sensor array, which numpy's ``fill`` walks at several times this loop's
+    cost."""
     for row in range(out.shape[0]):
         for arc in range(n_arcs):
-            out[row, arc] = empty
+            out[row, column + arc] = empty
     for k in range(rows.shape[0]):
         arc = int((bearings[k] + shift) * per_width)
         if arc >= n_arcs:
             arc -= n_arcs
-        if readings[k] < out[rows[k], arc]:
-            out[rows[k], arc] = readings[k]
+        if readings[k] < out[rows[k], column + arc]:
+            out[rows[k], column + arc] = readings[k]
 
 
 def ray_segment_distance(
@@ -405,6 +425,7 @@ def neighbour_sectors(
     *,
     enabled: np.ndarray | None = None,
     out: np.ndarray | None = None,
+    column: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The nearest sensed robot's reading per sector, for every robot.
 
@@ -423,15 +444,22 @@ def neighbour_sectors(
         enabled: (B, N) bool, the robots that can be sensed at all (those not
             switched off); None for all. Kept apart from ``visible`` so that a
             task with a fixed ``visible`` need not combine the two at every step.
-        out: (B, N, n_sectors) float64 array to fill, such as the sectors'
-            columns of a task's sensor array (see :func:`row_view`); None for a
-            new one.
+        out: A task's C-ordered float64 (B, N, K) sensor array, written in its
+            columns ``column`` to ``column + n_sectors - 1``; None for a new
+            (B, N, n_sectors) one.
+        column: The first column of ``out`` to write.
 
     Returns:
-        (B, N, n_sectors) readings, 1 where a sector senses nobody (``out`` if
-        given), and the (B, N) number of robots each robot senses (as float64).
+        The readings, 1 where a sector senses nobody (the new (B, N,
+        n_sectors) array, or ``out``), and the (B, N) number of robots each
+        robot senses (as float64).
+
+    Raises:
+        ValueError: If ``out`` is not such an array, or ``column`` is given
+            without it.
     """
     b, n = cos_h.shape
+    out = readings_out(out, (b, n), n_sectors, column, "neighbour_sectors")
     counts = np.empty((b, n))
     most = b * n * n
     rows = np.empty(most, dtype=np.intp)
@@ -457,12 +485,6 @@ def neighbour_sectors(
         ahead,
         readings,
     )
-    if out is None:
-        out = np.empty((b, n, n_sectors))
-    elif out.shape != (b, n, n_sectors):
-        raise ValueError(
-            f"neighbour_sectors: out has shape {out.shape}, need {(b, n, n_sectors)}"
-        )
     # bearing()'s atan2 stays in numpy (sdbc_sim.compiled), over the sensed pairs.
     bearings = np.arctan2(left[:k], ahead[:k])
     sector_minimum(
@@ -471,7 +493,8 @@ def neighbour_sectors(
         readings[:k],
         b * n,
         n_sectors,
-        out=row_view(out, n_sectors, "neighbour_sectors"),
+        out=out.reshape(b * n, out.shape[2]),
+        column=column,
     )
     return out, counts
 

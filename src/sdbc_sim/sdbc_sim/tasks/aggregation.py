@@ -234,7 +234,7 @@ class Aggregation(Task[AggregationTrials]):
         out = np.empty((b, n, c.n_inputs))
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         _, count = neighbour_sectors(
-            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, out=out[..., :k]
+            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, out=out
         )
         out[..., k] = count * (2.0 / (n - 1)) - 1.0
         self._wall_rays.read(pos, cos_h, sin_h, out=out, column=k + 1)

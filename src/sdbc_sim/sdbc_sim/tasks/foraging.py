@@ -338,7 +338,8 @@ class Foraging(Task[ForagingTrials]):
             c.robot_radius,
             c.robot_sensor_range,
             k,
-            out=out[..., 5 : 5 + k],
+            out=out,
+            column=5,
         )
         self._wall_rays.read(pos, cos_h, sin_h, out=out, column=5 + k)
         return out

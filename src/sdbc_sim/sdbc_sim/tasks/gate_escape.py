@@ -318,7 +318,8 @@ class GateEscape(Task[GateEscapeTrials]):
             c.neighbour_range,
             c.n_robot_arcs,
             enabled=bodies.enabled,
-            out=out[..., 3 : 3 + c.n_robot_arcs],
+            out=out,
+            column=3,
         )
         out[..., 2] = count * (2.0 / max(n - 1, 1)) - 1.0
         self._wall_rays.read(pos, cos_h, sin_h, out=out, column=3 + c.n_robot_arcs)

@@ -391,7 +391,7 @@ class ResourceSharing(Task[ResourceSharingTrials]):
         cos_h, sin_h = bodies.cos_angle, bodies.sin_angle
         # Other robots, dead ones too (obstacles); only the few in range.
         neighbour_sectors(
-            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, out=out[..., :k]
+            pos, cos_h, sin_h, c.robot_radius, c.robot_sensor_range, k, out=out
         )
         left = np.empty((b, n))
         ahead = np.empty((b, n))
