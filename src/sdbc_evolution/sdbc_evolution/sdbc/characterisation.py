@@ -14,11 +14,11 @@ dimensions are named by :func:`dimension_names`: "Agent group size (M)", ...,
 from __future__ import annotations
 
 import numpy as np
+from sdbc_sim.compiled import compiled
 from sdbc_sim.task_state import (
     TaskDescription,
     TaskState,
-    real_task_state,
-    validate_task_state,
+    TaskStateCheck,
 )
 
 from sdbc_evolution.sdbc.aggregation import (
@@ -117,6 +117,8 @@ class SdbcExtractor:
         self.fixed_static_geometry = fixed_static_geometry
         self._features: StepFeatures | None = None
         self._aggregator: ModeAggregator | None = None
+        self._check_state: TaskStateCheck | None = None
+        self._limited: tuple[int, ...] = ()
         self._step = 0
         # Set by start(); observe() and the results refuse to run before it.
         self._previous_active = np.zeros(0, dtype=bool)
@@ -130,6 +132,7 @@ class SdbcExtractor:
         self._aggregator = make_aggregator(
             options.mode, options.frames, n_trials, self._features.n_features
         )
+        self._check_state = TaskStateCheck(description, n_trials)
         self._step = 0
         self._previous_active = np.ones(n_trials, dtype=bool)
 
@@ -148,8 +151,17 @@ class SdbcExtractor:
                 "keep the features of the old one"
             )
         self._features = self._step_features(description)
+        self._check_state = TaskStateCheck(description, self._aggregating().n_trials)
 
     def _step_features(self, description: TaskDescription) -> StepFeatures:
+        # Groups whose size the values check bounds: at most max_size slots
+        # leave only a lower limit to break, and StepFeatures checks full
+        # groups (min_size = max_size) itself.
+        self._limited = tuple(
+            g
+            for g, spec in enumerate(description.groups)
+            if spec.min_size not in (0, spec.max_size)
+        )
         return StepFeatures(
             description,
             fixed_static_geometry=self.fixed_static_geometry,
@@ -180,25 +192,25 @@ class SdbcExtractor:
         """Adds the step ``state.step`` of every active trial."""
         features = self._started()
         aggregator = self._aggregating()
-        description = features.description
-        n_trials = aggregator.n_trials
-        state = real_task_state(description, state)
-        validate_task_state(description, state, n_trials)
+        check_state = self._check_state
+        assert check_state is not None  # set with the aggregator
+        state = check_state(state)
         if state.step != self._step + 1:
             raise ValueError(
-                f"SDBC extractor, task {description.name!r}: step {state.step} follows "
-                f"step {self._step}; steps must arrive in order from 1"
+                f"SDBC extractor, task {features.description.name!r}: step "
+                f"{state.step} follows step {self._step}; steps must arrive in "
+                "order from 1"
             )
         active = state.active
-        resumed = active & ~self._previous_active
-        if resumed.any():
+        n_trials = aggregator.n_trials
+        n_active = _count_active(active, self._previous_active)
+        if n_active < 0:
             raise ValueError(
-                f"SDBC extractor, task {description.name!r}, step {state.step}: trial "
-                f"{int(np.flatnonzero(resumed)[0])} is active again after it ended"
+                f"SDBC extractor, task {features.description.name!r}, step "
+                f"{state.step}: trial {-1 - n_active} is active again after it ended"
             )
-        n_active = int(np.count_nonzero(active))
         if n_active > self.compact_below * n_trials:
-            total, count = features.compute(state)
+            total, count = features.compute(state, layout=check_state.layout)
             if self.check_values:
                 self._check(state, total)
             aggregator.update_from_totals(total, count, active)
@@ -210,7 +222,7 @@ class SdbcExtractor:
                 self._check(state, total, trials)
             aggregator.update_trials(trials, total, count)
         self._step = state.step
-        self._previous_active = active.copy()
+        np.copyto(self._previous_active, active)
 
     def _padded(self, trials: np.ndarray) -> np.ndarray:
         """``trials`` padded by repeating the first to the next of a few sizes
@@ -229,22 +241,17 @@ class SdbcExtractor:
         features = self._started()
         description = features.description
         active = state.active
-        bad = (
-            ~np.isfinite(total) if trials is not None else ~np.isfinite(total) & active
-        )
-        if bad.any():
-            f, column = np.argwhere(bad)[0]
+        first = _first_not_finite(total, active, trials is not None)
+        if first >= 0:
+            f, column = divmod(first, total.shape[1])
             trial = column if trials is None else trials[column]
             raise ValueError(
                 f"SDBC extractor, task {description.name!r}, step {state.step}, trial "
                 f"{trial}: feature {features.features[f].name!r} is not "
                 "finite; a present entity has a NaN or infinite attribute or coordinate"
             )
-        for spec, group in zip(description.groups, state.groups, strict=True):
-            if spec.min_size in (0, spec.max_size):
-                # At most max_size slots, so only a lower limit can be broken, and
-                # StepFeatures checks full groups (min_size = max_size) itself.
-                continue
+        for g in self._limited:
+            spec, group = description.groups[g], state.groups[g]
             size = np.broadcast_to(
                 np.count_nonzero(group.present, axis=1), active.shape
             )
@@ -266,3 +273,31 @@ class SdbcExtractor:
         """(B, D) raw characterisations so far (the paper's: ``[means, finals,
         length]``)."""
         return self._aggregating().result()
+
+
+@compiled("int64(boolean[:], boolean[::1])")
+def _count_active(
+    active: np.ndarray, previous: np.ndarray
+) -> int:  # pragma: no cover - compiled; tested through SdbcExtractor
+    """The number of ``active`` trials, or ``-1 - b`` for the first trial ``b``
+    active again after it ended (inactive in ``previous``)."""
+    n = 0
+    for b in range(active.shape[0]):
+        if active[b]:
+            if not previous[b]:
+                return -1 - b
+            n += 1
+    return n
+
+
+@compiled("int64(float64[:, :], boolean[:], boolean)")
+def _first_not_finite(
+    total: np.ndarray, active: np.ndarray, all_active: bool
+) -> int:  # pragma: no cover - compiled; tested through SdbcExtractor
+    """The row-major index of the first value of ``total`` (F, B) that is NaN or
+    infinite in an active trial (every column, with ``all_active``); -1 if none."""
+    for f in range(total.shape[0]):
+        for b in range(total.shape[1]):
+            if (all_active or active[b]) and not np.isfinite(total[f, b]):
+                return f * total.shape[1] + b
+    return -1
