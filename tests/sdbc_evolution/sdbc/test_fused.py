@@ -143,25 +143,20 @@ def test_polygons_shared_by_every_trial(description: TaskDescription) -> None:
 
 
 def shared_rows(state: TaskState) -> TaskState:
-    """``state`` with a batch axis of 1 wherever the engine gives one: radii,
-    and a static group's presence and shapes."""
+    """``state`` with a batch axis of 1 where the contract allows one: every
+    presence (the first trial's, so sizes shared by every trial), radii and
+    polygons; values made finite where the first trial's presence now shows
+    them."""
     groups = []
     for group in state.groups:
-        radii = None if group.radii is None else group.radii[:1]
+        present = group.present[:1]
+        attributes = np.nan_to_num(group.attributes)
         if group.segments is not None:
-            groups.append(
-                GroupState(
-                    group.present[:1], group.attributes, segments=group.segments[:1]
-                )
-            )
-        elif group.centres is not None and group.centres.shape[0] > 1:
-            groups.append(
-                GroupState(
-                    group.present, group.attributes, centres=group.centres, radii=radii
-                )
-            )
-        else:
-            groups.append(group)
+            groups.append(GroupState(present, attributes, segments=group.segments[:1]))
+            continue
+        radii = None if group.radii is None else group.radii[:1]
+        centres = np.nan_to_num(group.shapes("centres"))
+        groups.append(GroupState(present, attributes, centres=centres, radii=radii))
     return TaskState(state.step, state.active, tuple(groups))
 
 

@@ -753,19 +753,22 @@ class StepFeatures:
                 counted.add(feature.group)
                 if feature.kind is FeatureKind.DISPERSION:
                     shaped.add(feature.group)
-        sizes: dict[int, np.ndarray | float] = {}
+        # Row g: group g's sizes in its first width[g] columns (1: one for all).
+        sizes = np.empty((len(groups), total.shape[1]))
+        width = np.ones(len(groups), dtype=np.int64)
         masks: dict[int, np.ndarray] = {}
         occupancy = _kernel(loops.occupancy)
         for g in sorted(counted):
             if full[g]:
-                sizes[g] = float(groups[g].max_size)
+                sizes[g, 0] = groups[g].max_size
                 masks[g] = loops.none_absent(slot_counts[g])
                 continue
             slot_major = state.groups[g].present.shape[::-1]
-            absent = self._workspace.get(("absent", g), slot_major, np.bool_)
-            size = self._workspace.get(("size", g), slot_major[1:])
-            reads.append(_reader(occupancy, g, "present", absent, size))
-            sizes[g], masks[g] = size, absent
+            masks[g] = self._workspace.get(("absent", g), slot_major, np.bool_)
+            width[g] = slot_major[1]
+            reads.append(_reader(occupancy, g, "present", masks[g], sizes[g]))
+        # Rows of loops.size_features: (what, f, g, h, rows).
+        sized: list[tuple[int, int, int, int, int]] = []
         shapes: dict[int, Shapes] = {}
         for g in sorted(shaped):
             planned = self._plan_shapes(state, g)
@@ -781,13 +784,8 @@ class StepFeatures:
             spec = groups[g]
             kind = feature.kind
             if kind is FeatureKind.GROUP_SIZE:
-                calls.append(
-                    functools.partial(
-                        np.subtract, sizes[g], spec.min_size, out=total[f]
-                    )
-                )
                 span = spec.max_size - spec.min_size
-                calls.append(functools.partial(np.divide, total[f], span, out=total[f]))
+                sized.append((loops.GROUP_SIZE, f, g, spec.min_size, span))
             elif kind is FeatureKind.MEAN_STATE:
                 if feature.attribute != 0:
                     continue
@@ -796,7 +794,7 @@ class StepFeatures:
                     _reader(mean_state, g, "attributes", masks[g], total[rows])
                 )
                 if f not in constant:
-                    calls.append(functools.partial(np.copyto, count[rows], sizes[g]))
+                    sized.append((loops.SIZE_COUNT, f, g, 0, len(spec.attributes)))
             elif kind is FeatureKind.DISPERSION:
                 i, j = slot_pairs(slot_counts[g], None)
                 mask = masks[g]
@@ -807,10 +805,7 @@ class StepFeatures:
                     return None
                 calls.append(call)
                 if not full[g]:
-                    n, row = sizes[g], count[f]
-                    calls.append(functools.partial(np.subtract, n, 1.0, out=row))
-                    calls.append(functools.partial(np.multiply, n, row, out=row))
-                    calls.append(functools.partial(np.divide, row, 2.0, out=row))
+                    sized.append((loops.PAIR_COUNT, f, g, 0, 0))
             elif kind is FeatureKind.GROUP_DISTANCE:
                 h = feature.second_group
                 first, second = slot_pairs(slot_counts[g], slot_counts[h])
@@ -821,14 +816,22 @@ class StepFeatures:
                     return None
                 calls.append(call)
                 if not (full[g] and full[h]):
-                    calls.append(
-                        functools.partial(np.multiply, sizes[g], sizes[h], out=count[f])
-                    )
+                    sized.append((loops.CROSS_COUNT, f, g, h, 0))
             elif kind is FeatureKind.STATE_DEVIATION:
                 attribute = feature.state_attribute
                 reads.append(_deviation_reader(g, attribute, total[f], count[f]))
             else:
                 calls.append(functools.partial(self._relation, f, total, count))
+        if sized:
+            # First: the relations read the mean states' counts.
+            rows_of_sizes = np.array(sized, dtype=np.int64)
+            size_features = _kernel(loops.size_features)
+            calls.insert(
+                0,
+                functools.partial(
+                    size_features, sizes, width, rows_of_sizes, total, count
+                ),
+            )
         return _Plan(layout, reads, calls, total, count)
 
     def _plan_shapes(
