@@ -115,21 +115,30 @@ def size_features(
         plan: (K, 5) the rows.
         total, count: (F, B) the features' sums and counts.
     """
+    n_trials = total.shape[1]
     for k in range(plan.shape[0]):
         what, f, g, h, rows = plan[k, 0], plan[k, 1], plan[k, 2], plan[k, 3], plan[k, 4]
-        for b in range(total.shape[1]):
-            n = sizes[g, b if width[g] > 1 else 0]
-            if what == GROUP_SIZE:
-                total[f, b] = (n - float(h)) / float(rows)
-            elif what == SIZE_COUNT:
-                for r in range(rows):
-                    count[f + r, b] = n
-            elif what == PAIR_COUNT:
+        # Column b of a group's sizes: b, or 0 for one size shared by all.
+        step_g = 1 if width[g] > 1 else 0
+        if what == GROUP_SIZE:
+            low = float(h)
+            span = float(rows)
+            for b in range(n_trials):
+                total[f, b] = (sizes[g, b * step_g] - low) / span
+        elif what == SIZE_COUNT:
+            for r in range(rows):
+                for b in range(n_trials):
+                    count[f + r, b] = sizes[g, b * step_g]
+        elif what == PAIR_COUNT:
+            for b in range(n_trials):
+                n = sizes[g, b * step_g]
                 c = n - 1.0
                 c = n * c
                 count[f, b] = c / 2.0
-            else:
-                count[f, b] = n * sizes[h, b if width[h] > 1 else 0]
+        else:
+            step_h = 1 if width[h] > 1 else 0
+            for b in range(n_trials):
+                count[f, b] = sizes[g, b * step_g] * sizes[h, b * step_h]
 
 
 def batch_row(array: np.ndarray, slot: int, spare: np.ndarray) -> np.ndarray:
