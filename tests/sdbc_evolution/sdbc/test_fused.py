@@ -191,3 +191,27 @@ def test_step_plans_against_the_oracle(
                 tuple(a.copy() for a in fused.compute(given)),
                 tuple(a.copy() for a in oracle.compute(given)),
             )
+
+
+@pytest.mark.parametrize("description", DESCRIPTIONS, ids=lambda d: d.name)
+@pytest.mark.parametrize("fixed_static_geometry", [False, True])
+def test_plans_of_some_trials_against_the_oracle(
+    description: TaskDescription, fixed_static_geometry: bool
+) -> None:
+    """The whole batch, then some of its trials at each step (as the extractor
+    computes them once few are left), with their plans: the oracle's bits."""
+    rng = np.random.default_rng(8)
+    fused = StepFeatures(description, fixed_static_geometry)
+    oracle = StepFeatures(description, fixed_static_geometry, fused=False)
+    some = [None, None, [1, 4, 4, 9], [0, 4, 6, 11], [3, 3, 3, 3], [2, 7], [5, 8]]
+    state: TaskState | None = None
+    for step, trials in enumerate(some, start=1):
+        state = random_state(
+            description, 12, rng, step=step, p_present=0.6, previous=state
+        )
+        given = shared_rows(state) if step == 5 else state
+        chosen = None if trials is None else np.array(trials)
+        assert_same_bits(
+            tuple(a.copy() for a in fused.compute(given, chosen)),
+            tuple(a.copy() for a in oracle.compute(given, chosen)),
+        )

@@ -38,7 +38,7 @@ trials or entities.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any
@@ -478,6 +478,14 @@ class _Plan:
     total: np.ndarray
     count: np.ndarray
 
+    def run(self, state: TaskState) -> tuple[np.ndarray, np.ndarray]:
+        """``(total, count)`` of ``state``, a state of the plan's layout."""
+        for read in self.reads:
+            read(state)
+        for call in self.calls:
+            call()
+        return self.total, self.count
+
 
 def _reader(
     loop: Callable[..., Any], g: int, label: str, *out: np.ndarray
@@ -519,10 +527,12 @@ def _static_reader(
     return read
 
 
-def _discs_reader(g: int, shapes: Discs, ws: Workspace) -> Callable[[TaskState], None]:
-    """Refills the arrays of ``shapes`` (made by :func:`group_shapes` for the
-    layout) from each step's state."""
-    centres = ws.get((g, "centres"), (2, *shapes.x.shape))
+def _discs_reader(
+    g: int, key: Hashable, shapes: Discs, ws: Workspace
+) -> Callable[[TaskState], None]:
+    """Refills the arrays of ``shapes`` (made by :func:`group_shapes` under
+    ``key`` for the layout) from each step's state."""
+    centres = ws.get((key, "centres"), (2, *shapes.x.shape))
     radii = shapes.r
 
     def read(state: TaskState) -> None:
@@ -535,12 +545,12 @@ def _discs_reader(g: int, shapes: Discs, ws: Workspace) -> Callable[[TaskState],
 
 
 def _polygons_reader(
-    g: int, shapes: Segments, ws: Workspace
+    g: int, key: Hashable, shapes: Segments, ws: Workspace
 ) -> tuple[Segments, Callable[[TaskState], None]]:
     """Segments whose every array a step refills in place from the state, with
-    the operations of :func:`group_shapes` and :meth:`Segments.between` (which
-    would make new arrays at every step)."""
-    source = ws.get((g, "segments"), (2, 2, *shapes.ax.shape))
+    the operations of :func:`group_shapes` (under ``key``) and
+    :meth:`Segments.between` (which would make new arrays at every step)."""
+    source = ws.get((key, "segments"), (2, 2, *shapes.ax.shape))
     abx, aby, inverse, length2, squared = (np.empty_like(shapes.ax) for _ in range(5))
     positive = np.empty(shapes.ax.shape, np.bool_)
     polygons = Segments(shapes.ax, shapes.ay, shapes.bx, shapes.by, abx, aby, inverse)
@@ -616,6 +626,7 @@ class StepFeatures:
         }
         self._buffers_by_size: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._plan: _Plan | None = None
+        self._trials_plan: _Plan | None = None
         self._unplanned: tuple[object, ...] | None = None
 
     @property
@@ -703,8 +714,12 @@ class StepFeatures:
         Raises:
             ValueError: If a full group misses an entity in an active trial.
         """
-        if trials is not None or not self.fused:
+        if not self.fused:
             return self._compute_general(state, trials)
+        if trials is not None:
+            return self._compute_some(state, trials)
+        # The static caches the trials' plan decided on may change from here.
+        self._trials_plan = None
         if layout is None:
             layout = state_layout(state)
         plan = self._plan
@@ -713,24 +728,40 @@ class StepFeatures:
             and layout is not None
             and (plan.layout is layout or plan.layout == layout)
         ):
-            for read in plan.reads:
-                read(state)
-            for call in plan.calls:
-                call()
-            return plan.total, plan.count
+            return plan.run(state)
         result = self._compute_general(state, None)
         if layout is not None and layout != self._unplanned:
-            self._plan = self._make_plan(state, layout)
+            self._plan = self._make_plan(state, layout, gathered=False)
             # Two polygons: the general path, without trying again every step.
             self._unplanned = layout if self._plan is None else None
         return result
 
-    def _make_plan(self, state: TaskState, layout: tuple[object, ...]) -> _Plan | None:
+    def _compute_some(
+        self, state: TaskState, trials: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`compute` of some trials: their gathered state, a batch of its
+        own, by the plan of its layout, which stays while only trials are
+        computed (the full batch's steps update the static caches)."""
+        self._forget_other_slots(state)
+        gathered = self._gather(state, trials)
+        layout = state_layout(gathered)
+        plan = self._trials_plan
+        if plan is not None and layout is not None and plan.layout == layout:
+            return plan.run(gathered)
+        result = self._compute_gathered(gathered, gathered=True)
+        if layout is not None:
+            self._trials_plan = self._make_plan(gathered, layout, gathered=True)
+        return result
+
+    def _make_plan(
+        self, state: TaskState, layout: tuple[object, ...], *, gathered: bool
+    ) -> _Plan | None:
         """What :meth:`_compute_general` does at every step with states of
         ``layout``, decided once, from a state it has just computed: which groups'
         presence and shapes to read into which arrays, which loop to call with
         which of them for each feature. None where a feature has no loop (two
-        polygons), which then stays with :meth:`_compute_general`."""
+        polygons), which then stays with :meth:`_compute_general`. ``gathered``:
+        the state holds some trials of the batch (:meth:`_gather`)."""
         groups = self.description.groups
         full = self._full
         slot_counts = self._slot_counts
@@ -771,7 +802,7 @@ class StepFeatures:
         sized: list[tuple[int, int, int, int, int]] = []
         shapes: dict[int, Shapes] = {}
         for g in sorted(shaped):
-            planned = self._plan_shapes(state, g)
+            planned = self._plan_shapes(state, g, gathered)
             if planned is None:
                 return None
             shapes[g], read = planned
@@ -835,24 +866,35 @@ class StepFeatures:
         return _Plan(layout, reads, calls, total, count)
 
     def _plan_shapes(
-        self, state: TaskState, g: int
+        self, state: TaskState, g: int, gathered: bool
     ) -> tuple[Shapes, Callable[[TaskState], None] | None] | None:
         """Group ``g``'s shapes in a plan, and how a step reads them (None: never,
-        a static group's shapes all known); None if the group has no cache yet."""
+        a static group's shapes all known); None if the group has no cache yet.
+        As :meth:`_compute_gathered` decides them."""
         spec = self.description.groups[g]
         ws = self._workspace
         group = state.groups[g]
+        key: Hashable = g
         if self.fixed_static_geometry and spec.static:
             cache = self._static.get(g)
-            if cache is None:
+            if gathered:
+                if (
+                    cache is not None
+                    and cache.complete
+                    and _batch_width(cache.shapes) == 1
+                ):
+                    return cache.shapes, None
+                key = ("static", g)
+            elif cache is None:
                 return None
-            if cache.complete:
+            elif cache.complete:
                 return cache.shapes, None
-            return cache.shapes, _static_reader(g, cache, spec.geometry, ws)
-        shapes = group_shapes(group, spec.geometry, ws, g)
+            else:
+                return cache.shapes, _static_reader(g, cache, spec.geometry, ws)
+        shapes = group_shapes(group, spec.geometry, ws, key)
         if isinstance(shapes, Discs):
-            return shapes, _discs_reader(g, shapes, ws)
-        return _polygons_reader(g, shapes, ws)
+            return shapes, _discs_reader(g, key, shapes, ws)
+        return _polygons_reader(g, key, shapes, ws)
 
     def _check_full_groups(self, full_groups: list[int], state: TaskState) -> None:
         for g in full_groups:
@@ -880,22 +922,33 @@ class StepFeatures:
         self, state: TaskState, trials: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`compute`, deciding everything anew from the state."""
-        groups = self.description.groups
-        full = self._full
-        ws = self._workspace
+        self._forget_other_slots(state)
+        if trials is None:
+            return self._compute_gathered(state, gathered=False)
+        return self._compute_gathered(self._gather(state, trials), gathered=True)
+
+    def _forget_other_slots(self, state: TaskState) -> None:
         slot_counts = tuple(group.present.shape[1] for group in state.groups)
         if slot_counts != self._slot_counts:
             # The scratch arrays of other slot counts will not serve again soon:
             # a message stream's counts follow its entities, and keeping an
             # array for every count seen would grow without bound.
-            ws.clear()
+            self._workspace.clear()
             self._static.clear()
             self._slot_counts = slot_counts
-            # It holds the caches just dropped, which a state of its layout
+            # They hold the caches just dropped, which a state of their layout
             # would read anew.
-            self._plan = None
-        if trials is not None:
-            state = self._gather(state, trials)
+            self._plan = self._trials_plan = None
+
+    def _compute_gathered(
+        self, state: TaskState, *, gathered: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_compute_general` of a state of the whole batch, or of some of
+        its trials (``gathered``), whose slot counts are known."""
+        groups = self.description.groups
+        full = self._full
+        ws = self._workspace
+        slot_counts = self._slot_counts
         total, count = self._buffers(state.active.shape[0])
         fused = self.fused
         present: dict[int, np.ndarray] = {}
@@ -951,7 +1004,7 @@ class StepFeatures:
                 shapes[g] = group_shapes(group, geometry, ws, g)
                 return shapes[g]
             cache = self._static.get(g)
-            if trials is not None:
+            if gathered:
                 # Some trials only: the cache serves if it is complete and shared;
                 # otherwise the gathered state's present slots hold their shapes.
                 if (
