@@ -202,15 +202,18 @@ class TrialAggregator(ModeAggregator):
     ) -> None:
         """Adds one step of the ``trials`` (n,) given as ``total / count``, both
         (F, n), all of them active; the other trials are left as they are."""
-        defined = count > 0.0
-        value = np.divide(total, np.maximum(count, 1.0))
-        np.putmask(value, ~defined, 0.0)
-        self._sum[:, trials] += value
-        self._count[:, trials] += defined
-        last = self._last[:, trials]
-        np.putmask(last, defined, value)
-        self._last[:, trials] = last
-        self._length[trials] += 1
+        # One compiled pass, as update_from_totals: the extractor calls this at
+        # every step once few trials are left, where numpy's calls cost more
+        # than their arithmetic.
+        _add_trial_totals(
+            total,
+            count,
+            np.asarray(trials, dtype=np.int64),
+            self._sum,
+            self._count,
+            self._last,
+            self._length,
+        )
 
     def _add(self, defined: np.ndarray, active: np.ndarray) -> None:
         # Undefined and inactive values may be anything: overwritten, never added.
@@ -231,9 +234,31 @@ class TrialAggregator(ModeAggregator):
         )
 
 
+def add_value(
+    total: float,
+    count: float,
+    f: int,
+    b: int,
+    sums: np.ndarray,
+    counts: np.ndarray,
+    last: np.ndarray,
+) -> None:
+    """Adds feature ``f``'s ``total / count`` to trial ``b``'s running sums, as
+    :meth:`TrialAggregator.update` does: defined where the count is > 0, an
+    undefined value adding 0 (its total is 0 too: dividing by 1 keeps it) and
+    leaving the last value as it was."""
+    defined = count > 0.0
+    value = total / (count if count >= 1.0 else 1.0) if defined else 0.0
+    sums[f, b] += value
+    counts[f, b] += 1.0 if defined else 0.0
+    if defined:
+        last[f, b] = value
+
+
 @compiled(
     "void(float64[:, :], float64[:, :], boolean[:], float64[:, ::1], "
-    "float64[:, ::1], float64[:, ::1], int64[::1])"
+    "float64[:, ::1], float64[:, ::1], int64[::1])",
+    calls=(add_value,),
 )
 def _add_totals(
     total: np.ndarray,
@@ -252,16 +277,35 @@ def _add_totals(
     as it was."""
     for f in range(total.shape[0]):
         for b in range(total.shape[1]):
-            c = count[f, b]
-            defined = c > 0.0 and active[b]
-            value = total[f, b] / (c if c >= 1.0 else 1.0) if defined else 0.0
-            sums[f, b] += value
-            counts[f, b] += 1.0 if defined else 0.0
-            if defined:
-                last[f, b] = value
+            # An inactive trial's value is undefined, whatever its count.
+            c = count[f, b] if active[b] else 0.0
+            add_value(total[f, b], c, f, b, sums, counts, last)
     for b in range(length.shape[0]):
         if active[b]:
             length[b] += 1
+
+
+@compiled(
+    "void(float64[:, :], float64[:, :], int64[::1], float64[:, ::1], "
+    "float64[:, ::1], float64[:, ::1], int64[::1])",
+    calls=(add_value,),
+)
+def _add_trial_totals(
+    total: np.ndarray,
+    count: np.ndarray,
+    trials: np.ndarray,
+    sums: np.ndarray,
+    counts: np.ndarray,
+    last: np.ndarray,
+    length: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested against TrialAggregator.update
+    """:func:`_add_totals` for the ``trials`` (n,) only, all of them active,
+    given as ``total / count`` (F, n)."""
+    for f in range(total.shape[0]):
+        for j in range(trials.shape[0]):
+            add_value(total[f, j], count[f, j], f, trials[j], sums, counts, last)
+    for j in range(trials.shape[0]):
+        length[trials[j]] += 1
 
 
 class MeanFinal(ModeAggregator):
