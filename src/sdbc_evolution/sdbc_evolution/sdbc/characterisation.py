@@ -216,11 +216,10 @@ class SdbcExtractor:
             aggregator.update_from_totals(total, count, active)
         elif n_active > 0:
             trials = np.flatnonzero(active)
-            total, count = features.compute(state, self._padded(trials))
-            total, count = total[:, :n_active], count[:, :n_active]
+            padded, count = features.compute(state, self._padded(trials))
             if self.check_values:
-                self._check(state, total, trials)
-            aggregator.update_trials(trials, total, count)
+                self._check(state, padded, trials)
+            aggregator.update_trials(trials, padded[:, :n_active], count[:, :n_active])
         self._step = state.step
         np.copyto(self._previous_active, active)
 
@@ -237,13 +236,15 @@ class SdbcExtractor:
     def _check(
         self, state: TaskState, total: np.ndarray, trials: np.ndarray | None = None
     ) -> None:
-        """``total`` covers the batch, or only ``trials`` (all active)."""
+        """``total`` covers the batch, or only ``trials`` (all active) in its
+        first columns."""
         features = self._started()
         description = features.description
         active = state.active
-        first = _first_not_finite(total, active, trials is not None)
+        n = active.shape[0] if trials is None else trials.shape[0]
+        first = _first_not_finite(total, active, n, trials is not None)
         if first >= 0:
-            f, column = divmod(first, total.shape[1])
+            f, column = divmod(first, n)
             trial = column if trials is None else trials[column]
             raise ValueError(
                 f"SDBC extractor, task {description.name!r}, step {state.step}, trial "
@@ -281,23 +282,36 @@ def _count_active(
 ) -> int:  # pragma: no cover - compiled; tested through SdbcExtractor
     """The number of ``active`` trials, or ``-1 - b`` for the first trial ``b``
     active again after it ended (inactive in ``previous``)."""
+    # Without a branch, which the compiler vectorises; the search only if due.
     n = 0
+    resumed = False
     for b in range(active.shape[0]):
-        if active[b]:
-            if not previous[b]:
+        n += active[b]
+        resumed |= active[b] and not previous[b]
+    if resumed:
+        for b in range(active.shape[0]):
+            if active[b] and not previous[b]:
                 return -1 - b
-            n += 1
     return n
 
 
-@compiled("int64(float64[:, :], boolean[:], boolean)")
+@compiled("int64(float64[:, ::1], boolean[:], int64, boolean)")
 def _first_not_finite(
-    total: np.ndarray, active: np.ndarray, all_active: bool
+    total: np.ndarray, active: np.ndarray, n: int, all_active: bool
 ) -> int:  # pragma: no cover - compiled; tested through SdbcExtractor
-    """The row-major index of the first value of ``total`` (F, B) that is NaN or
+    """The row-major index in ``total[:, :n]`` of its first value that is NaN or
     infinite in an active trial (every column, with ``all_active``); -1 if none."""
     for f in range(total.shape[0]):
-        for b in range(total.shape[1]):
-            if (all_active or active[b]) and not np.isfinite(total[f, b]):
-                return f * total.shape[1] + b
+        row = total[f]
+        # x - x is 0 but for NaN and infinities: a scan without a branch, which
+        # the compiler vectorises, then the search only in a row that has one.
+        bad = False
+        for b in range(n):
+            x = row[b]
+            bad |= x - x != 0.0
+        if bad:
+            for b in range(n):
+                x = row[b]
+                if x - x != 0.0 and (all_active or active[b]):
+                    return f * n + b
     return -1
