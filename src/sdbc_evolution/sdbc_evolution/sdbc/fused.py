@@ -110,35 +110,40 @@ def size_features(
 
     Args:
         sizes: (G, B) each group's size per trial, in its first ``width[g]``
-            columns: B, or 1 where one value holds for every trial.
+            columns: B, or 1 where one value holds for every trial (then
+            copied over the row).
         width: (G,) see ``sizes``.
         plan: (K, 5) the rows.
         total, count: (F, B) the features' sums and counts.
     """
     n_trials = total.shape[1]
+    # Shared sizes spread over their row first: the loops below then read
+    # plain rows, which the compiler vectorises.
+    for g in range(sizes.shape[0]):
+        if width[g] == 1:
+            for b in range(1, n_trials):
+                sizes[g, b] = sizes[g, 0]
     for k in range(plan.shape[0]):
         what, f, g, h, rows = plan[k, 0], plan[k, 1], plan[k, 2], plan[k, 3], plan[k, 4]
-        # Column b of a group's sizes: b, or 0 for one size shared by all.
-        step_g = 1 if width[g] > 1 else 0
+        n = sizes[g]
         if what == GROUP_SIZE:
             low = float(h)
             span = float(rows)
             for b in range(n_trials):
-                total[f, b] = (sizes[g, b * step_g] - low) / span
+                total[f, b] = (n[b] - low) / span
         elif what == SIZE_COUNT:
             for r in range(rows):
                 for b in range(n_trials):
-                    count[f + r, b] = sizes[g, b * step_g]
+                    count[f + r, b] = n[b]
         elif what == PAIR_COUNT:
             for b in range(n_trials):
-                n = sizes[g, b * step_g]
-                c = n - 1.0
-                c = n * c
+                c = n[b] - 1.0
+                c = n[b] * c
                 count[f, b] = c / 2.0
         else:
-            step_h = 1 if width[h] > 1 else 0
+            other = sizes[h]
             for b in range(n_trials):
-                count[f, b] = sizes[g, b * step_g] * sizes[h, b * step_h]
+                count[f, b] = n[b] * other[b]
 
 
 def batch_row(array: np.ndarray, slot: int, spare: np.ndarray) -> np.ndarray:
