@@ -368,6 +368,76 @@ def validate_task_state(
                 _check_array(description, state, spec, "radii", group.radii, (size,))
 
 
+def state_layout(state: TaskState) -> tuple[object, ...] | None:
+    """All that :func:`real_task_state` and :func:`validate_task_state` read of a
+    state besides its description and batch size: every array's type, shape and
+    dtype (None for no array), group by group. Two states of the same layout pass
+    or fail both alike; None if an array has no shape or dtype to read."""
+    try:
+        active = state.active
+        layout: list[object] = [(type(active), active.shape, active.dtype)]
+        for group in state.groups:
+            for array in (
+                group.present,
+                group.attributes,
+                group.centres,
+                group.radii,
+                group.segments,
+            ):
+                # A triple per array, never flattened: numpy's dtypes compare
+                # equal to None (the default dtype), which a shifted flat key
+                # would line up against them.
+                layout.append(
+                    None if array is None else (type(array), array.shape, array.dtype)
+                )
+    except Exception:  # noqa: BLE001 - anything unreadable takes the full checks
+        return None
+    return tuple(layout)
+
+
+class TaskStateCheck:
+    """:func:`real_task_state` then :func:`validate_task_state` for a stream of
+    states of one description and batch size, as an observer gets them at every
+    step.
+
+    A state of the layout (:func:`state_layout`) of the last one accepted as it was
+    (float64 and bool ndarrays, nothing converted) passes on one comparison of
+    layouts: the checks would read nothing else. Any other state gets them in full,
+    with their messages.
+
+    Args:
+        description: The task description.
+        n_trials: B, the batch size every state must have.
+    """
+
+    def __init__(self, description: TaskDescription, n_trials: int) -> None:
+        self.description = description
+        self.n_trials = n_trials
+        self._accepted: tuple[object, ...] | None = None
+        self.layout: tuple[object, ...] | None = None
+        """The layout of the state the last call returned (None if unreadable);
+        the same object at every step while the layout holds."""
+
+    def __call__(self, state: TaskState) -> TaskState:
+        """``state`` as :func:`real_task_state` returns it, checked.
+
+        Raises:
+            ValueError: As :func:`real_task_state` and :func:`validate_task_state`.
+        """
+        layout = state_layout(state)
+        accepted = self._accepted
+        if layout is not None and layout == accepted:
+            self.layout = accepted
+            return state
+        real = real_task_state(self.description, state)
+        validate_task_state(self.description, real, self.n_trials)
+        if real is state:
+            self._accepted = self.layout = layout
+        else:
+            self.layout = state_layout(real)
+        return real
+
+
 def _slots(
     description: TaskDescription,
     state: TaskState,

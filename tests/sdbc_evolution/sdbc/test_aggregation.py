@@ -75,23 +75,35 @@ def test_streaming_equals_one_go(samples: np.ndarray) -> None:
     )
 
 
-def test_step_totals_add_as_the_values_do_to_the_bit() -> None:
-    """update_from_totals (the extractor's compiled step) against update, the
-    numpy formulation, given total / count with NaN where the count is 0: sums,
-    counts, last values and lengths to the bit, over steps with trials ending,
-    counts of 0 and totals of -0.0."""
+@pytest.mark.parametrize("some", [False, True])
+def test_step_totals_add_as_the_values_do_to_the_bit(some: bool) -> None:
+    """update_from_totals (the extractor's compiled step), or update_trials with
+    the active trials only (``some``: its step once few are left), against
+    update, the numpy formulation, given total / count with NaN where the count
+    is 0: sums, counts, last values and lengths to the bit, over steps with
+    trials ending, counts of 0 and totals of -0.0."""
     rng = np.random.default_rng(3)
     n_features, n_trials = 5, 37
     by_totals = TrialAggregator(n_trials, n_features)
     by_values = TrialAggregator(n_trials, n_features)
     active = np.ones(n_trials, dtype=bool)
-    for _ in range(12):
-        count = rng.integers(0, 4, (n_features, n_trials)).astype(np.float64)
+    for step in range(12):
+        trials = np.flatnonzero(active) if some else np.arange(n_trials)
+        count = rng.integers(0, 4, (n_features, trials.size)).astype(np.float64)
         total = np.where(count > 0, rng.normal(size=count.shape) * count, 0.0)
         total[rng.random(count.shape) < 0.1] = -0.0
-        values = np.where(count > 0, total / np.maximum(count, 1.0), NAN).T
-        by_totals.update_from_totals(total, count, active)
-        by_values.update(np.ascontiguousarray(values), active)
+        values = np.full((n_trials, n_features), NAN)
+        values[trials] = np.where(count > 0, total / np.maximum(count, 1.0), NAN).T
+        if some:
+            by_totals.update_trials(trials, total, count)
+        elif step % 2:
+            # Arrays of any layout (the loop wants contiguous rows).
+            by_totals.update_from_totals(
+                np.asfortranarray(total), np.asfortranarray(count), active
+            )
+        else:
+            by_totals.update_from_totals(total, count, active)
+        by_values.update(values, active)
         active &= rng.random(n_trials) < 0.85
     for name in ("_sum", "_count", "_last", "_length"):
         got, want = getattr(by_totals, name), getattr(by_values, name)

@@ -260,3 +260,63 @@ def test_entity_groups_are_declared_by_keyword_and_checked() -> None:
     ):
         with pytest.raises(ValueError, match=message):
             EntityGroupSpec(**{**good, **change})
+
+
+def _nan_speed(state: TaskState) -> None:
+    state.groups[0].attributes[1, 2, 0] = NAN
+
+
+def _no_beacon(state: TaskState) -> None:
+    state.groups[1].present = np.zeros((1, 1), dtype=bool)
+
+
+def _complex_speeds(state: TaskState) -> None:
+    state.groups[0].attributes = state.groups[0].attributes + 0j
+
+
+def _three_rows(state: TaskState) -> None:
+    state.groups[1].attributes = np.ones((3, 1, 1))
+
+
+def _presence_as_numbers(state: TaskState) -> None:
+    state.groups[0].present = state.groups[0].present.astype(np.int8)
+
+
+def _no_centres(state: TaskState) -> None:
+    state.groups[0].centres = None
+
+
+def _active_of_three(state: TaskState) -> None:
+    state.active = np.ones(3, dtype=bool)
+
+
+@pytest.mark.parametrize(
+    ("change", "pattern"),
+    [
+        (_nan_speed, r"trial 1: feature 'Robots speed' is not finite"),
+        (_no_beacon, r"group 'Beacon' \(min_size = max_size = 1\) misses an entity"),
+        (_complex_speeds, r"group 'Robots': attributes has dtype complex128"),
+        (_three_rows, r"group 'Beacon': attributes has 3 rows, expected 2"),
+        (_presence_as_numbers, r"group 'Robots': present has dtype int8"),
+        (_no_centres, r"group 'Robots': centres is missing"),
+        (_active_of_three, r"active must be a \(2,\) bool array"),
+    ],
+)
+@pytest.mark.parametrize("good_steps", [0, 3])
+def test_bad_input_after_good_steps_is_named_alike(
+    change, pattern: str, good_steps: int
+) -> None:
+    """After steps of one layout, whose states are checked and computed as the
+    first one decided, a bad state gets the message it gets as the first."""
+    present = [[True, True, True], [True, False, True]]
+    extractor = SdbcExtractor()
+    extractor.start(SMALL, 2)
+    for step in range(1, good_steps + 1):
+        state = small_state(present)
+        state.step = step
+        extractor.observe(state)
+    state = small_state(present)
+    state.step = good_steps + 1
+    change(state)
+    with pytest.raises(ValueError, match=pattern):
+        extractor.observe(state)

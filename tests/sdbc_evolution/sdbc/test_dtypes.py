@@ -14,7 +14,9 @@ from sdbc_sim.task_state import (
     DTYPE_RULE,
     GroupState,
     TaskState,
+    TaskStateCheck,
     real_task_state,
+    state_layout,
     validate_task_state,
 )
 from sdbc_states import PREDATOR_PREY, random_state
@@ -116,3 +118,37 @@ def test_validation_alone_states_the_rule() -> None:
     with pytest.raises(ValueError, match="dtype float32, expected float64") as refused:
         validate_task_state(PREDATOR_PREY, state, 4)
     assert "real_task_state converts" in str(refused.value)
+
+
+def test_a_checked_stream_converts_and_refuses_as_each_state_would() -> None:
+    """TaskStateCheck passes a state laid out as the last one accepted without
+    reading it again, and gives any other what real_task_state and
+    validate_task_state give it alone."""
+    check = TaskStateCheck(PREDATOR_PREY, 4)
+    rng = np.random.default_rng(3)
+    exact = [random_state(PREDATOR_PREY, 4, rng, step=s) for s in range(1, 4)]
+    assert all(check(state) is state for state in exact)
+    assert check.layout is not None and check.layout == state_layout(exact[-1])
+    single = float32_states()[0]
+    converted = check(single)
+    assert converted is not single
+    assert converted.groups[0].centres.dtype == np.float64
+    assert check(exact[0]) is exact[0]
+    bad = dataclasses.replace(
+        exact[0],
+        groups=(
+            dataclasses.replace(
+                exact[0].groups[0], centres=exact[0].groups[0].centres + 0j
+            ),
+            *exact[0].groups[1:],
+        ),
+    )
+    with pytest.raises(ValueError) as alone:
+        real_task_state(PREDATOR_PREY, bad)
+    with pytest.raises(ValueError) as streamed:
+        check(bad)
+    assert str(streamed.value) == str(alone.value)
+    wide = dataclasses.replace(exact[0], active=np.ones(5, dtype=bool))
+    with pytest.raises(ValueError, match=r"active must be a \(4,\) bool array"):
+        check(wide)
+    assert check(exact[1]) is exact[1]

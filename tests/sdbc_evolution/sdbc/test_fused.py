@@ -3,9 +3,12 @@ bit: ``StepFeatures(fused=False)`` is the oracle."""
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import pytest
-from sdbc_evolution.sdbc.features import StepFeatures
+from sdbc_evolution.sdbc.features import StepFeatures, behaviour_features
+from sdbc_evolution.sdbc.options import SdbcOptions
 from sdbc_sim.task_state import GroupState, TaskDescription, TaskState
 from sdbc_sim.tasks import available_tasks, make_task
 from sdbc_states import (
@@ -137,3 +140,78 @@ def test_polygons_shared_by_every_trial(description: TaskDescription) -> None:
             )
         groups.append(group)
     both(description, TaskState(1, state.active, tuple(groups)))
+
+
+def shared_rows(state: TaskState) -> TaskState:
+    """``state`` with a batch axis of 1 where the contract allows one: every
+    presence (the first trial's, so sizes shared by every trial), radii and
+    polygons; values made finite where the first trial's presence now shows
+    them."""
+    groups = []
+    for group in state.groups:
+        present = group.present[:1]
+        attributes = np.nan_to_num(group.attributes)
+        if group.segments is not None:
+            groups.append(GroupState(present, attributes, segments=group.segments[:1]))
+            continue
+        radii = None if group.radii is None else group.radii[:1]
+        centres = np.nan_to_num(group.shapes("centres"))
+        groups.append(GroupState(present, attributes, centres=centres, radii=radii))
+    return TaskState(state.step, state.active, tuple(groups))
+
+
+@pytest.mark.parametrize("description", DESCRIPTIONS, ids=lambda d: d.name)
+@pytest.mark.parametrize("fixed_static_geometry", [False, True])
+@pytest.mark.parametrize("n_trials", [1, 9])
+def test_step_plans_against_the_oracle(
+    description: TaskDescription, fixed_static_geometry: bool, n_trials: int
+) -> None:
+    """A stream whose layout changes now and then: each step of a layout after its
+    first runs the plan made at that first step, on its own state's values, and
+    gives the oracle's bits, with the options' features too; a static group's
+    slots appearing late are read as they appear."""
+    options = [SdbcOptions()]
+    with contextlib.suppress(ValueError):
+        extended = SdbcOptions(state_deviation=True, relations=True)
+        behaviour_features(description, extended)
+        options.append(extended)
+    for chosen in options:
+        rng = np.random.default_rng(n_trials)
+        fused = StepFeatures(description, fixed_static_geometry, options=chosen)
+        oracle = StepFeatures(
+            description, fixed_static_geometry, fused=False, options=chosen
+        )
+        state: TaskState | None = None
+        for step in range(1, 9):
+            state = random_state(
+                description, n_trials, rng, step=step, p_present=0.6, previous=state
+            )
+            given = shared_rows(state) if step in (3, 4, 5) else state
+            assert_same_bits(
+                tuple(a.copy() for a in fused.compute(given)),
+                tuple(a.copy() for a in oracle.compute(given)),
+            )
+
+
+@pytest.mark.parametrize("description", DESCRIPTIONS, ids=lambda d: d.name)
+@pytest.mark.parametrize("fixed_static_geometry", [False, True])
+def test_plans_of_some_trials_against_the_oracle(
+    description: TaskDescription, fixed_static_geometry: bool
+) -> None:
+    """The whole batch, then some of its trials at each step (as the extractor
+    computes them once few are left), with their plans: the oracle's bits."""
+    rng = np.random.default_rng(8)
+    fused = StepFeatures(description, fixed_static_geometry)
+    oracle = StepFeatures(description, fixed_static_geometry, fused=False)
+    some = [None, None, [1, 4, 4, 9], [0, 4, 6, 11], [3, 3, 3, 3], [2, 7], [5, 8]]
+    state: TaskState | None = None
+    for step, trials in enumerate(some, start=1):
+        state = random_state(
+            description, 12, rng, step=step, p_present=0.6, previous=state
+        )
+        given = shared_rows(state) if step == 5 else state
+        chosen = None if trials is None else np.array(trials)
+        assert_same_bits(
+            tuple(a.copy() for a in fused.compute(given, chosen)),
+            tuple(a.copy() for a in oracle.compute(given, chosen)),
+        )

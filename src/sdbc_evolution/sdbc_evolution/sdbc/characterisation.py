@@ -14,11 +14,11 @@ dimensions are named by :func:`dimension_names`: "Agent group size (M)", ...,
 from __future__ import annotations
 
 import numpy as np
+from sdbc_sim.compiled import compiled
 from sdbc_sim.task_state import (
     TaskDescription,
     TaskState,
-    real_task_state,
-    validate_task_state,
+    TaskStateCheck,
 )
 
 from sdbc_evolution.sdbc.aggregation import (
@@ -117,6 +117,8 @@ class SdbcExtractor:
         self.fixed_static_geometry = fixed_static_geometry
         self._features: StepFeatures | None = None
         self._aggregator: ModeAggregator | None = None
+        self._check_state: TaskStateCheck | None = None
+        self._limited: tuple[int, ...] = ()
         self._step = 0
         # Set by start(); observe() and the results refuse to run before it.
         self._previous_active = np.zeros(0, dtype=bool)
@@ -130,6 +132,7 @@ class SdbcExtractor:
         self._aggregator = make_aggregator(
             options.mode, options.frames, n_trials, self._features.n_features
         )
+        self._check_state = TaskStateCheck(description, n_trials)
         self._step = 0
         self._previous_active = np.ones(n_trials, dtype=bool)
 
@@ -148,8 +151,17 @@ class SdbcExtractor:
                 "keep the features of the old one"
             )
         self._features = self._step_features(description)
+        self._check_state = TaskStateCheck(description, self._aggregating().n_trials)
 
     def _step_features(self, description: TaskDescription) -> StepFeatures:
+        # Groups whose size the values check bounds: at most max_size slots
+        # leave only a lower limit to break, and StepFeatures checks full
+        # groups (min_size = max_size) itself.
+        self._limited = tuple(
+            g
+            for g, spec in enumerate(description.groups)
+            if spec.min_size not in (0, spec.max_size)
+        )
         return StepFeatures(
             description,
             fixed_static_geometry=self.fixed_static_geometry,
@@ -180,37 +192,36 @@ class SdbcExtractor:
         """Adds the step ``state.step`` of every active trial."""
         features = self._started()
         aggregator = self._aggregating()
-        description = features.description
-        n_trials = aggregator.n_trials
-        state = real_task_state(description, state)
-        validate_task_state(description, state, n_trials)
+        check_state = self._check_state
+        assert check_state is not None  # set with the aggregator
+        state = check_state(state)
         if state.step != self._step + 1:
             raise ValueError(
-                f"SDBC extractor, task {description.name!r}: step {state.step} follows "
-                f"step {self._step}; steps must arrive in order from 1"
+                f"SDBC extractor, task {features.description.name!r}: step "
+                f"{state.step} follows step {self._step}; steps must arrive in "
+                "order from 1"
             )
         active = state.active
-        resumed = active & ~self._previous_active
-        if resumed.any():
+        n_trials = aggregator.n_trials
+        n_active = _count_active(active, self._previous_active)
+        if n_active < 0:
             raise ValueError(
-                f"SDBC extractor, task {description.name!r}, step {state.step}: trial "
-                f"{int(np.flatnonzero(resumed)[0])} is active again after it ended"
+                f"SDBC extractor, task {features.description.name!r}, step "
+                f"{state.step}: trial {-1 - n_active} is active again after it ended"
             )
-        n_active = int(np.count_nonzero(active))
         if n_active > self.compact_below * n_trials:
-            total, count = features.compute(state)
+            total, count = features.compute(state, layout=check_state.layout)
             if self.check_values:
                 self._check(state, total)
             aggregator.update_from_totals(total, count, active)
         elif n_active > 0:
             trials = np.flatnonzero(active)
-            total, count = features.compute(state, self._padded(trials))
-            total, count = total[:, :n_active], count[:, :n_active]
+            padded, count = features.compute(state, self._padded(trials))
             if self.check_values:
-                self._check(state, total, trials)
-            aggregator.update_trials(trials, total, count)
+                self._check(state, padded, trials)
+            aggregator.update_trials(trials, padded[:, :n_active], count[:, :n_active])
         self._step = state.step
-        self._previous_active = active.copy()
+        np.copyto(self._previous_active, active)
 
     def _padded(self, trials: np.ndarray) -> np.ndarray:
         """``trials`` padded by repeating the first to the next of a few sizes
@@ -225,26 +236,23 @@ class SdbcExtractor:
     def _check(
         self, state: TaskState, total: np.ndarray, trials: np.ndarray | None = None
     ) -> None:
-        """``total`` covers the batch, or only ``trials`` (all active)."""
+        """``total`` covers the batch, or only ``trials`` (all active) in its
+        first columns."""
         features = self._started()
         description = features.description
         active = state.active
-        bad = (
-            ~np.isfinite(total) if trials is not None else ~np.isfinite(total) & active
-        )
-        if bad.any():
-            f, column = np.argwhere(bad)[0]
+        n = active.shape[0] if trials is None else trials.shape[0]
+        first = _first_not_finite(total, active, n, trials is not None)
+        if first >= 0:
+            f, column = divmod(first, n)
             trial = column if trials is None else trials[column]
             raise ValueError(
                 f"SDBC extractor, task {description.name!r}, step {state.step}, trial "
                 f"{trial}: feature {features.features[f].name!r} is not "
                 "finite; a present entity has a NaN or infinite attribute or coordinate"
             )
-        for spec, group in zip(description.groups, state.groups, strict=True):
-            if spec.min_size in (0, spec.max_size):
-                # At most max_size slots, so only a lower limit can be broken, and
-                # StepFeatures checks full groups (min_size = max_size) itself.
-                continue
+        for g in self._limited:
+            spec, group = description.groups[g], state.groups[g]
             size = np.broadcast_to(
                 np.count_nonzero(group.present, axis=1), active.shape
             )
@@ -266,3 +274,44 @@ class SdbcExtractor:
         """(B, D) raw characterisations so far (the paper's: ``[means, finals,
         length]``)."""
         return self._aggregating().result()
+
+
+@compiled("int64(boolean[:], boolean[::1])")
+def _count_active(
+    active: np.ndarray, previous: np.ndarray
+) -> int:  # pragma: no cover - compiled; tested through SdbcExtractor
+    """The number of ``active`` trials, or ``-1 - b`` for the first trial ``b``
+    active again after it ended (inactive in ``previous``)."""
+    # Without a branch, which the compiler vectorises; the search only if due.
+    n = 0
+    resumed = False
+    for b in range(active.shape[0]):
+        n += active[b]
+        resumed |= active[b] and not previous[b]
+    if resumed:
+        for b in range(active.shape[0]):
+            if active[b] and not previous[b]:
+                return -1 - b
+    return n
+
+
+@compiled("int64(float64[:, ::1], boolean[:], int64, boolean)")
+def _first_not_finite(
+    total: np.ndarray, active: np.ndarray, n: int, all_active: bool
+) -> int:  # pragma: no cover - compiled; tested through SdbcExtractor
+    """The row-major index in ``total[:, :n]`` of its first value that is NaN or
+    infinite in an active trial (every column, with ``all_active``); -1 if none."""
+    for f in range(total.shape[0]):
+        row = total[f]
+        # x - x is 0 but for NaN and infinities: a scan without a branch, which
+        # the compiler vectorises, then the search only in a row that has one.
+        bad = False
+        for b in range(n):
+            x = row[b]
+            bad |= x - x != 0.0
+        if bad:
+            for b in range(n):
+                x = row[b]
+                if x - x != 0.0 and (all_active or active[b]):
+                    return f * n + b
+    return -1

@@ -38,9 +38,10 @@ trials or entities.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from enum import Enum
+from typing import Any
 
 import numpy as np
 from sdbc_sim.sensors import axis_views
@@ -50,6 +51,7 @@ from sdbc_sim.task_state import (
     GroupState,
     TaskDescription,
     TaskState,
+    state_layout,
     validate_task_state,
 )
 
@@ -301,7 +303,15 @@ def _slot_sum(
     return total
 
 
-def _fused_distance_total(
+def _ran(call: Callable[[], object] | None) -> bool:
+    """Calls ``call`` if there is one; whether there was."""
+    if call is None:
+        return False
+    call()
+    return True
+
+
+def _fused_distance_call(
     a: Shapes,
     a_absent: np.ndarray,
     b: Shapes,
@@ -309,30 +319,38 @@ def _fused_distance_total(
     first: np.ndarray,
     second: np.ndarray,
     out: np.ndarray,
-) -> bool:
-    """``out[b] = sum_p f_D(a[first[p]], b[second[p]])``, a pair with an absent
-    entity adding 0, by the loops of :mod:`.fused`; False, with nothing done, for
-    two groups of polygons, which the loops leave to numpy."""
+) -> Callable[[], None] | None:
+    """The loop of :mod:`.fused` that computes ``out[b] = sum_p f_D(a[first[p]],
+    b[second[p]])``, a pair with an absent entity adding 0, bound to its
+    arguments; None for two groups of polygons, which the loops leave to numpy.
+    A step plan calls it at every step on arrays it refills in place."""
     if isinstance(a, Discs) and isinstance(b, Discs):
-        loops.disc_pair_total(
+        return functools.partial(
+            _kernel(loops.disc_pair_total),
             *(a.x, a.y, _radii(a), a_absent),
             *(b.x, b.y, _radii(b), b_absent),
             *(first, second, out),
         )
-    elif isinstance(a, Segments) and isinstance(b, Segments):
-        return False
-    else:
-        discs, polygons = disc_and_polygon(a, b)
-        disc_slots, polygon_slots = (first, second) if discs is a else (second, first)
-        disc_absent, polygon_absent = (
-            (a_absent, b_absent) if discs is a else (b_absent, a_absent)
-        )
-        loops.disc_segment_total(
-            *(discs.x, discs.y, _radii(discs), disc_absent),
-            *(polygons.ax, polygons.ay, polygons.abx, polygons.aby),
-            *(polygons.inverse, polygon_absent, disc_slots, polygon_slots, out),
-        )
-    return True
+    if isinstance(a, Segments) and isinstance(b, Segments):
+        return None
+    discs, polygons = disc_and_polygon(a, b)
+    disc_slots, polygon_slots = (first, second) if discs is a else (second, first)
+    disc_absent, polygon_absent = (
+        (a_absent, b_absent) if discs is a else (b_absent, a_absent)
+    )
+    return functools.partial(
+        _kernel(loops.disc_segment_total),
+        *(discs.x, discs.y, _radii(discs), disc_absent),
+        *(polygons.ax, polygons.ay, polygons.abx, polygons.aby),
+        *(polygons.inverse, polygon_absent, disc_slots, polygon_slots, out),
+    )
+
+
+def _kernel(loop: Callable[..., Any]) -> Callable[..., Any]:
+    """A compiled loop's numba kernel itself, without the wrapper that loads it
+    at its first call (a frame per call, a dozen calls a step)."""
+    load = getattr(loop, "load", None)
+    return loop if load is None else load()
 
 
 def _radii(discs: Discs) -> np.ndarray:
@@ -447,6 +465,109 @@ def _zero_where(array: np.ndarray, mask: np.ndarray) -> None:
     np.copyto(array, 0.0, where=mask)
 
 
+@dataclass(frozen=True)
+class _Plan:
+    """A step of :meth:`StepFeatures.compute` for states of one layout: the
+    ``reads`` take the state (checks, presence, shapes, attributes) into the
+    arrays that the ``calls``, bound to them, then turn into ``total`` and
+    ``count``."""
+
+    layout: tuple[object, ...]
+    reads: list[Callable[[TaskState], None]]
+    calls: list[Callable[[], object]]
+    total: np.ndarray
+    count: np.ndarray
+
+    def run(self, state: TaskState) -> tuple[np.ndarray, np.ndarray]:
+        """``(total, count)`` of ``state``, a state of the plan's layout."""
+        for read in self.reads:
+            read(state)
+        for call in self.calls:
+            call()
+        return self.total, self.count
+
+
+def _reader(
+    loop: Callable[..., Any], g: int, label: str, *out: np.ndarray
+) -> Callable[[TaskState], None]:
+    """``loop(array, *out)`` with the state's array ``label`` of group ``g``."""
+
+    def read(state: TaskState) -> None:
+        loop(getattr(state.groups[g], label), *out)
+
+    return read
+
+
+def _deviation_reader(
+    g: int, attribute: int, total: np.ndarray, count: np.ndarray
+) -> Callable[[TaskState], None]:
+    """Group ``g``'s deviation of ``attribute`` into its rows of the totals."""
+
+    def read(state: TaskState) -> None:
+        np.copyto(count, _deviation(state.groups[g], attribute, total))
+
+    return read
+
+
+def _static_reader(
+    g: int, cache: _StaticShapes, geometry: Geometry, ws: Workspace
+) -> Callable[[TaskState], None]:
+    """Reads the slots of a static group's cache as they appear, as
+    :meth:`StepFeatures._compute_general` does, until every slot is known."""
+
+    def read(state: TaskState) -> None:
+        if cache.complete:
+            return
+        group = state.groups[g]
+        source = group.present.T
+        presence = ws.get(("present", g), source.shape, np.bool_)
+        np.copyto(presence, source)
+        cache.update(group, geometry, presence, ws)
+
+    return read
+
+
+def _discs_reader(
+    g: int, key: Hashable, shapes: Discs, ws: Workspace
+) -> Callable[[TaskState], None]:
+    """Refills the arrays of ``shapes`` (made by :func:`group_shapes` under
+    ``key`` for the layout) from each step's state."""
+    centres = ws.get((key, "centres"), (2, *shapes.x.shape))
+    radii = shapes.r
+
+    def read(state: TaskState) -> None:
+        group = state.groups[g]
+        np.copyto(centres, group.shapes("centres").transpose(2, 1, 0))
+        if radii is not None:
+            np.copyto(radii, group.shapes("radii").T)
+
+    return read
+
+
+def _polygons_reader(
+    g: int, key: Hashable, shapes: Segments, ws: Workspace
+) -> tuple[Segments, Callable[[TaskState], None]]:
+    """Segments whose every array a step refills in place from the state, with
+    the operations of :func:`group_shapes` (under ``key``) and
+    :meth:`Segments.between` (which would make new arrays at every step)."""
+    source = ws.get((key, "segments"), (2, 2, *shapes.ax.shape))
+    abx, aby, inverse, length2, squared = (np.empty_like(shapes.ax) for _ in range(5))
+    positive = np.empty(shapes.ax.shape, np.bool_)
+    polygons = Segments(shapes.ax, shapes.ay, shapes.bx, shapes.by, abx, aby, inverse)
+
+    def read(state: TaskState) -> None:
+        np.copyto(source, state.groups[g].shapes("segments").transpose(3, 4, 2, 1, 0))
+        np.subtract(polygons.bx, polygons.ax, out=abx)
+        np.subtract(polygons.by, polygons.ay, out=aby)
+        np.multiply(abx, abx, out=length2)
+        np.add(length2, np.multiply(aby, aby, out=squared), out=length2)
+        np.greater(length2, 0, out=positive)
+        inverse.fill(0.0)
+        np.divide(1.0, length2, out=inverse, where=positive)
+
+    return polygons, read
+
+
 class StepFeatures:
     """Computes every behaviour feature of a task for a batch of trials at one step.
 
@@ -504,6 +625,9 @@ class StepFeatures:
             if feature.kind is FeatureKind.MEAN_STATE
         }
         self._buffers_by_size: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._plan: _Plan | None = None
+        self._trials_plan: _Plan | None = None
+        self._unplanned: tuple[object, ...] | None = None
 
     @property
     def n_features(self) -> int:
@@ -571,7 +695,11 @@ class StepFeatures:
         return None
 
     def compute(
-        self, state: TaskState, trials: np.ndarray | None = None
+        self,
+        state: TaskState,
+        trials: np.ndarray | None = None,
+        *,
+        layout: tuple[object, ...] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """``(total, count)``, both (F, B) float64, for one step; the arrays are
         overwritten by the next call with as many trials.
@@ -580,23 +708,247 @@ class StepFeatures:
             state: The task state of the batch.
             trials: Indices of the trials to compute, all active (B = their
                 number); None for the whole batch.
+            layout: The state's :func:`~sdbc_sim.task_state.state_layout`, if the
+                caller has it; read here otherwise.
 
         Raises:
             ValueError: If a full group misses an entity in an active trial.
         """
+        if not self.fused:
+            return self._compute_general(state, trials)
+        if trials is not None:
+            return self._compute_some(state, trials)
+        # The static caches the trials' plan decided on may change from here.
+        self._trials_plan = None
+        if layout is None:
+            layout = state_layout(state)
+        plan = self._plan
+        if (
+            plan is not None
+            and layout is not None
+            and (plan.layout is layout or plan.layout == layout)
+        ):
+            return plan.run(state)
+        result = self._compute_general(state, None)
+        if layout is not None and layout != self._unplanned:
+            self._plan = self._make_plan(state, layout, gathered=False)
+            # Two polygons: the general path, without trying again every step.
+            self._unplanned = layout if self._plan is None else None
+        return result
+
+    def _compute_some(
+        self, state: TaskState, trials: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`compute` of some trials: their gathered state, a batch of its
+        own, by the plan of its layout, which stays while only trials are
+        computed (the full batch's steps update the static caches)."""
+        self._forget_other_slots(state)
+        gathered = self._gather(state, trials)
+        layout = state_layout(gathered)
+        plan = self._trials_plan
+        if plan is not None and layout is not None and plan.layout == layout:
+            return plan.run(gathered)
+        result = self._compute_gathered(gathered, gathered=True)
+        if layout is not None:
+            self._trials_plan = self._make_plan(gathered, layout, gathered=True)
+        return result
+
+    def _make_plan(
+        self, state: TaskState, layout: tuple[object, ...], *, gathered: bool
+    ) -> _Plan | None:
+        """What :meth:`_compute_general` does at every step with states of
+        ``layout``, decided once, from a state it has just computed: which groups'
+        presence and shapes to read into which arrays, which loop to call with
+        which of them for each feature. None where a feature has no loop (two
+        polygons), which then stays with :meth:`_compute_general`. ``gathered``:
+        the state holds some trials of the batch (:meth:`_gather`)."""
         groups = self.description.groups
         full = self._full
+        slot_counts = self._slot_counts
+        total, count = self._buffers(state.active.shape[0])
+        reads: list[Callable[[TaskState], None]] = []
+        calls: list[Callable[[], object]] = []
+        full_groups = [g for g, is_full in enumerate(full) if is_full]
+        if full_groups:
+            reads.append(functools.partial(self._check_full_groups, full_groups))
+        counted: set[int] = set()
+        shaped: set[int] = set()
+        for feature in self.features:
+            if feature.kind is FeatureKind.GROUP_DISTANCE:
+                pair = {feature.group, feature.second_group}
+                counted |= pair
+                shaped |= pair
+            elif feature.kind is not FeatureKind.STATE_DEVIATION and (
+                feature.kind is not FeatureKind.RELATION
+            ):
+                counted.add(feature.group)
+                if feature.kind is FeatureKind.DISPERSION:
+                    shaped.add(feature.group)
+        # Row g: group g's sizes in its first width[g] columns (1: one for all).
+        sizes = np.empty((len(groups), total.shape[1]))
+        width = np.ones(len(groups), dtype=np.int64)
+        masks: dict[int, np.ndarray] = {}
+        occupancy = _kernel(loops.occupancy)
+        for g in sorted(counted):
+            if full[g]:
+                sizes[g, 0] = groups[g].max_size
+                masks[g] = loops.none_absent(slot_counts[g])
+                continue
+            slot_major = state.groups[g].present.shape[::-1]
+            masks[g] = self._workspace.get(("absent", g), slot_major, np.bool_)
+            width[g] = slot_major[1]
+            reads.append(_reader(occupancy, g, "present", masks[g], sizes[g]))
+        # Rows of loops.size_features: (what, f, g, h, rows).
+        sized: list[tuple[int, int, int, int, int]] = []
+        shapes: dict[int, Shapes] = {}
+        for g in sorted(shaped):
+            planned = self._plan_shapes(state, g, gathered)
+            if planned is None:
+                return None
+            shapes[g], read = planned
+            if read is not None:
+                reads.append(read)
+        mean_state = _kernel(loops.mean_state_totals)
+        constant = self._constant_counts
+        for f, feature in enumerate(self.features):
+            g = feature.group
+            spec = groups[g]
+            kind = feature.kind
+            if kind is FeatureKind.GROUP_SIZE:
+                span = spec.max_size - spec.min_size
+                sized.append((loops.GROUP_SIZE, f, g, spec.min_size, span))
+            elif kind is FeatureKind.MEAN_STATE:
+                if feature.attribute != 0:
+                    continue
+                rows = slice(f, f + len(spec.attributes))
+                reads.append(
+                    _reader(mean_state, g, "attributes", masks[g], total[rows])
+                )
+                if f not in constant:
+                    sized.append((loops.SIZE_COUNT, f, g, 0, len(spec.attributes)))
+            elif kind is FeatureKind.DISPERSION:
+                i, j = slot_pairs(slot_counts[g], None)
+                mask = masks[g]
+                call = _fused_distance_call(
+                    shapes[g], mask, shapes[g], mask, i, j, total[f]
+                )
+                if call is None:
+                    return None
+                calls.append(call)
+                if not full[g]:
+                    sized.append((loops.PAIR_COUNT, f, g, 0, 0))
+            elif kind is FeatureKind.GROUP_DISTANCE:
+                h = feature.second_group
+                first, second = slot_pairs(slot_counts[g], slot_counts[h])
+                call = _fused_distance_call(
+                    shapes[g], masks[g], shapes[h], masks[h], first, second, total[f]
+                )
+                if call is None:
+                    return None
+                calls.append(call)
+                if not (full[g] and full[h]):
+                    sized.append((loops.CROSS_COUNT, f, g, h, 0))
+            elif kind is FeatureKind.STATE_DEVIATION:
+                attribute = feature.state_attribute
+                reads.append(_deviation_reader(g, attribute, total[f], count[f]))
+            else:
+                calls.append(functools.partial(self._relation, f, total, count))
+        if sized:
+            # First: the relations read the mean states' counts.
+            rows_of_sizes = np.array(sized, dtype=np.int64)
+            size_features = _kernel(loops.size_features)
+            calls.insert(
+                0,
+                functools.partial(
+                    size_features, sizes, width, rows_of_sizes, total, count
+                ),
+            )
+        return _Plan(layout, reads, calls, total, count)
+
+    def _plan_shapes(
+        self, state: TaskState, g: int, gathered: bool
+    ) -> tuple[Shapes, Callable[[TaskState], None] | None] | None:
+        """Group ``g``'s shapes in a plan, and how a step reads them (None: never,
+        a static group's shapes all known); None if the group has no cache yet.
+        As :meth:`_compute_gathered` decides them."""
+        spec = self.description.groups[g]
         ws = self._workspace
+        group = state.groups[g]
+        key: Hashable = g
+        if self.fixed_static_geometry and spec.static:
+            cache = self._static.get(g)
+            if gathered:
+                if (
+                    cache is not None
+                    and cache.complete
+                    and _batch_width(cache.shapes) == 1
+                ):
+                    return cache.shapes, None
+                key = ("static", g)
+            elif cache is None:
+                return None
+            elif cache.complete:
+                return cache.shapes, None
+            else:
+                return cache.shapes, _static_reader(g, cache, spec.geometry, ws)
+        shapes = group_shapes(group, spec.geometry, ws, key)
+        if isinstance(shapes, Discs):
+            return shapes, _discs_reader(g, key, shapes, ws)
+        return _polygons_reader(g, key, shapes, ws)
+
+    def _check_full_groups(self, full_groups: list[int], state: TaskState) -> None:
+        for g in full_groups:
+            present = state.groups[g].present
+            # Every slot present passes for any trial; else the full check.
+            if np.count_nonzero(present) != present.size:
+                self._check_full(state, g)
+
+    def _relation(self, f: int, total: np.ndarray, count: np.ndarray) -> None:
+        """Writes relation ``f``'s total and count from the mean states' rows."""
+        feature = self.features[f]
+        spec = self.description.groups[feature.group]
+        h, attribute = feature.second_group, feature.state_attribute
+        f_g = self._mean_rows[feature.group, attribute]
+        same = self.description.groups[h].attributes.index(spec.attributes[attribute])
+        f_h = self._mean_rows[h, same]
+        defined = (count[f_g] > 0) & (count[f_h] > 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            difference = total[f_g] / count[f_g] - total[f_h] / count[f_h]
+        # Undefined: 0 over a count of 0, as an empty group's sums are.
+        np.copyto(total[f], np.where(defined, difference, 0.0))
+        np.copyto(count[f], defined)
+
+    def _compute_general(
+        self, state: TaskState, trials: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`compute`, deciding everything anew from the state."""
+        self._forget_other_slots(state)
+        if trials is None:
+            return self._compute_gathered(state, gathered=False)
+        return self._compute_gathered(self._gather(state, trials), gathered=True)
+
+    def _forget_other_slots(self, state: TaskState) -> None:
         slot_counts = tuple(group.present.shape[1] for group in state.groups)
         if slot_counts != self._slot_counts:
             # The scratch arrays of other slot counts will not serve again soon:
             # a message stream's counts follow its entities, and keeping an
             # array for every count seen would grow without bound.
-            ws.clear()
+            self._workspace.clear()
             self._static.clear()
             self._slot_counts = slot_counts
-        if trials is not None:
-            state = self._gather(state, trials)
+            # They hold the caches just dropped, which a state of their layout
+            # would read anew.
+            self._plan = self._trials_plan = None
+
+    def _compute_gathered(
+        self, state: TaskState, *, gathered: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_compute_general` of a state of the whole batch, or of some of
+        its trials (``gathered``), whose slot counts are known."""
+        groups = self.description.groups
+        full = self._full
+        ws = self._workspace
+        slot_counts = self._slot_counts
         total, count = self._buffers(state.active.shape[0])
         fused = self.fused
         present: dict[int, np.ndarray] = {}
@@ -652,7 +1004,7 @@ class StepFeatures:
                 shapes[g] = group_shapes(group, geometry, ws, g)
                 return shapes[g]
             cache = self._static.get(g)
-            if trials is not None:
+            if gathered:
                 # Some trials only: the cache serves if it is complete and shared;
                 # otherwise the gathered state's present slots hold their shapes.
                 if (
@@ -708,8 +1060,10 @@ class StepFeatures:
                 shapes_g = shape(g)
                 if not (
                     fused
-                    and _fused_distance_total(
-                        shapes_g, mask(g), shapes_g, mask(g), i, j, total[f]
+                    and _ran(
+                        _fused_distance_call(
+                            shapes_g, mask(g), shapes_g, mask(g), i, j, total[f]
+                        )
                     )
                 ):
                     d = entity_distance(
@@ -735,16 +1089,7 @@ class StepFeatures:
                 defined = _deviation(state.groups[g], feature.state_attribute, total[f])
                 np.copyto(count[f], defined)
             elif feature.kind is FeatureKind.RELATION:
-                h, attribute = feature.second_group, feature.state_attribute
-                f_g = self._mean_rows[g, attribute]
-                same = groups[h].attributes.index(spec.attributes[attribute])
-                f_h = self._mean_rows[h, same]
-                defined = (count[f_g] > 0) & (count[f_h] > 0)
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    difference = total[f_g] / count[f_g] - total[f_h] / count[f_h]
-                # Undefined: 0 over a count of 0, as an empty group's sums are.
-                np.copyto(total[f], np.where(defined, difference, 0.0))
-                np.copyto(count[f], defined)
+                self._relation(f, total, count)
             else:
                 # Eq. 5: the mean over all pairs of present entities of g and h.
                 h = feature.second_group
@@ -752,8 +1097,16 @@ class StepFeatures:
                 a_shapes, b_shapes = shape(g), shape(h)
                 if not (
                     fused
-                    and _fused_distance_total(
-                        a_shapes, mask(g), b_shapes, mask(h), first, second, total[f]
+                    and _ran(
+                        _fused_distance_call(
+                            a_shapes,
+                            mask(g),
+                            b_shapes,
+                            mask(h),
+                            first,
+                            second,
+                            total[f],
+                        )
                     )
                 ):
                     d = entity_distance(expand(a_shapes, 1), expand(b_shapes, 0), ws, f)

@@ -15,7 +15,9 @@ to the bit:
 - :func:`disc_pair_total`: the sum of f_D over a list of disc pairs (circles or
   points), the numerator of eq. 4 (pairs i < j of one group) or of eq. 5 (every
   pair of two groups);
-- :func:`disc_segment_total`: the same for pairs of a disc and a polygon.
+- :func:`disc_segment_total`: the same for pairs of a disc and a polygon;
+- :func:`size_features`: from the groups' sizes, eq. 2 and the counts of
+  eqs. 3 to 5 that are not constant, the numpy operations of a handful of calls.
 
 A pair or an entity that is absent adds 0, the sums run in slot order starting
 from the first term, as ``features._slot_sum`` adds them, and the floor at 0 keeps
@@ -81,6 +83,67 @@ def occupancy(
             if here:
                 n += 1.0
         size[b] = n
+
+
+GROUP_SIZE, SIZE_COUNT, PAIR_COUNT, CROSS_COUNT = range(4)
+"""What a row of :func:`size_features`' plan writes."""
+
+
+@compiled(
+    "void(float64[:, ::1], int64[::1], int64[:, ::1], float64[:, :], float64[:, :])"
+)
+def size_features(
+    sizes: np.ndarray,
+    width: np.ndarray,
+    plan: np.ndarray,
+    total: np.ndarray,
+    count: np.ndarray,
+) -> None:  # pragma: no cover - compiled; tested through StepFeatures
+    """Writes what the groups' sizes give, a plan row ``(what, f, g, h, rows)`` at
+    a time, with the IEEE operations of the numpy formulation in its order:
+
+    - ``GROUP_SIZE``: eq. 2, ``total[f] = (n_g - h) / rows`` (h the group's
+      min_size, rows its max_size less its min_size);
+    - ``SIZE_COUNT``: ``count[f:f + rows] = n_g`` (eq. 3's entities);
+    - ``PAIR_COUNT``: ``count[f] = n_g (n_g - 1) / 2`` (eq. 4's pairs);
+    - ``CROSS_COUNT``: ``count[f] = n_g n_h`` (eq. 5's pairs).
+
+    Args:
+        sizes: (G, B) each group's size per trial, in its first ``width[g]``
+            columns: B, or 1 where one value holds for every trial (then
+            copied over the row).
+        width: (G,) see ``sizes``.
+        plan: (K, 5) the rows.
+        total, count: (F, B) the features' sums and counts.
+    """
+    n_trials = total.shape[1]
+    # Shared sizes spread over their row first: the loops below then read
+    # plain rows, which the compiler vectorises.
+    for g in range(sizes.shape[0]):
+        if width[g] == 1:
+            for b in range(1, n_trials):
+                sizes[g, b] = sizes[g, 0]
+    for k in range(plan.shape[0]):
+        what, f, g, h, rows = plan[k, 0], plan[k, 1], plan[k, 2], plan[k, 3], plan[k, 4]
+        n = sizes[g]
+        if what == GROUP_SIZE:
+            low = float(h)
+            span = float(rows)
+            for b in range(n_trials):
+                total[f, b] = (n[b] - low) / span
+        elif what == SIZE_COUNT:
+            for r in range(rows):
+                for b in range(n_trials):
+                    count[f + r, b] = n[b]
+        elif what == PAIR_COUNT:
+            for b in range(n_trials):
+                c = n[b] - 1.0
+                c = n[b] * c
+                count[f, b] = c / 2.0
+        else:
+            other = sizes[h]
+            for b in range(n_trials):
+                count[f, b] = n[b] * other[b]
 
 
 def batch_row(array: np.ndarray, slot: int, spare: np.ndarray) -> np.ndarray:
