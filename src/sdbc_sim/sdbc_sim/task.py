@@ -203,11 +203,29 @@ def kinematics_row(
     i: int,
 ) -> None:  # pragma: no cover - compiled into the loops that call it
     """Body ``i`` of trial ``t`` of :func:`_kinematics`, a helper of the loops
-    that fill a task's attributes in one pass (gate escape's)."""
+    that fill a task's attributes in one pass."""
     out[t, i, 0] = position[t, i, 0]
     out[t, i, 1] = position[t, i, 1]
     out[t, i, 2] = angular_velocity[t, i]
     out[t, i, 3] = math.hypot(velocity[t, i, 0], velocity[t, i, 1])
+
+
+def kinematics_and_centre_row(
+    position: np.ndarray,
+    angular_velocity: np.ndarray,
+    velocity: np.ndarray,
+    out: np.ndarray,
+    centres: np.ndarray,
+    t: int,
+    i: int,
+) -> None:  # pragma: no cover - compiled into the loops that call it
+    """:func:`kinematics_row`, and the body's centre into ``centres`` (B, R, 2):
+    a task state's centres are a copy of the strided positions, which the pass
+    over the attributes makes for about nothing where a copy of its own cost
+    as much as the pass (gate escape's, resource sharing's, predator-prey's)."""
+    kinematics_row(position, angular_velocity, velocity, out, t, i)
+    centres[t, i, 0] = position[t, i, 0]
+    centres[t, i, 1] = position[t, i, 1]
 
 
 @compiled(

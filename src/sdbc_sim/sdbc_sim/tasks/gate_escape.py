@@ -73,7 +73,14 @@ from sdbc_sim.settings import (
     check,
     settings,
 )
-from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays, kinematics_row
+from sdbc_sim.task import (
+    BodyLayout,
+    BodyState,
+    Task,
+    TrialArrays,
+    kinematics_and_centre_row,
+    kinematics_row,
+)
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
 _MAX_START_DRAWS = 100_000
@@ -505,7 +512,7 @@ def _escape_rules(
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64, float64, "
     "float64, float64[:, :, ::1], float64[:, :, ::1])",
-    calls=(kinematics_row,),
+    calls=(kinematics_and_centre_row, kinematics_row),
 )
 def _agent_attributes(
     position: np.ndarray,
@@ -521,15 +528,14 @@ def _agent_attributes(
     (:meth:`~sdbc_sim.task.BodyState.kinematics`), then "is passing gate", 1
     where ``|x| <= radius`` and ``gate_low < y < gate_high``, else 0 (the array
     formulation's comparisons, ``tests/sdbc_sim/tasks/test_gate_escape.py``);
-    and the centres (B, N, 2), which a copy of the strided positions took as
-    long to make as this whole pass."""
+    and the centres (B, N, 2)."""
     for t in range(out.shape[0]):
         for i in range(out.shape[1]):
-            kinematics_row(position, angular_velocity, velocity, out, t, i)
+            kinematics_and_centre_row(
+                position, angular_velocity, velocity, out, centres, t, i
+            )
             x = position[t, i, 0]
             y = position[t, i, 1]
-            centres[t, i, 0] = x
-            centres[t, i, 1] = y
             passing = abs(x) <= radius and y > gate_low and y < gate_high
             out[t, i, 4] = 1.0 if passing else 0.0
 

@@ -84,6 +84,7 @@ from sdbc_sim.task import (
     BodyState,
     Task,
     TrialArrays,
+    kinematics_and_centre_row,
     kinematics_row,
 )
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
@@ -649,7 +650,7 @@ def _pursuit(
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], boolean[:, :], "
     "float64[:, :, ::1], float64[:, :, ::1], boolean[:, ::1])",
-    calls=(kinematics_row,),
+    calls=(kinematics_and_centre_row, kinematics_row),
 )
 def _body_attributes(
     position: np.ndarray,
@@ -667,7 +668,7 @@ def _body_attributes(
     prey = position.shape[1] - 1
     for t in range(position.shape[0]):
         for i in range(position.shape[1]):
-            kinematics_row(position, angular_velocity, velocity, attributes, t, i)
-            centres[t, i, 0] = position[t, i, 0]
-            centres[t, i, 1] = position[t, i, 1]
+            kinematics_and_centre_row(
+                position, angular_velocity, velocity, attributes, centres, t, i
+            )
         prey_present[t, 0] = enabled[t, prey]

@@ -126,7 +126,14 @@ from sdbc_sim.settings import (
     check,
     settings,
 )
-from sdbc_sim.task import BodyLayout, BodyState, Task, TrialArrays, kinematics_row
+from sdbc_sim.task import (
+    BodyLayout,
+    BodyState,
+    Task,
+    TrialArrays,
+    kinematics_and_centre_row,
+    kinematics_row,
+)
 from sdbc_sim.task_state import EntityGroupSpec, Geometry, GroupState, TaskDescription
 
 NO_CHARGE_OPTIMUM = 99775 / 345 / 2000
@@ -710,7 +717,7 @@ def _commands(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64[:, :], "
     "boolean[:, :], float64[:, :, ::1], boolean[:, ::1], float64[:, :, ::1], "
     "float64[:, :, ::1])",
-    calls=(kinematics_row,),
+    calls=(kinematics_and_centre_row, kinematics_row),
 )
 def _agent_attributes(
     position: np.ndarray,
@@ -732,12 +739,12 @@ def _agent_attributes(
     for t in range(agents.shape[0]):
         anyone = False
         for i in range(agents.shape[1]):
-            kinematics_row(position, angular_velocity, velocity, agents, t, i)
+            kinematics_and_centre_row(
+                position, angular_velocity, velocity, agents, centres, t, i
+            )
             agents[t, i, 4] = energy[t, i]
             agents[t, i, 5] = 1.0 if charging[t, i] else 0.0
             present[t, i] = energy[t, i] > 0.0
-            centres[t, i, 0] = position[t, i, 0]
-            centres[t, i, 1] = position[t, i, 1]
             anyone = anyone or charging[t, i]
         occupied[t, 0, 0] = 1.0 if anyone else 0.0
 
