@@ -429,6 +429,14 @@ def _batch_width(shapes: Shapes) -> int:
     return (shapes.x if isinstance(shapes, Discs) else shapes.ax).shape[-1]
 
 
+def _shared_shapes(cache: _StaticShapes | None) -> Shapes | None:
+    """A static group's cached shapes if every slot is known and one row serves
+    every trial (so a gathered subset of trials can use them); else None."""
+    if cache is None or not cache.complete or _batch_width(cache.shapes) != 1:
+        return None
+    return cache.shapes
+
+
 def _arrays(shapes: Shapes) -> tuple[np.ndarray, ...]:
     if isinstance(shapes, Segments):
         return shapes.arrays()
@@ -878,12 +886,9 @@ class StepFeatures:
         if self.fixed_static_geometry and spec.static:
             cache = self._static.get(g)
             if gathered:
-                if (
-                    cache is not None
-                    and cache.complete
-                    and _batch_width(cache.shapes) == 1
-                ):
-                    return cache.shapes, None
+                shared = _shared_shapes(cache)
+                if shared is not None:
+                    return shared, None
                 key = ("static", g)
             elif cache is None:
                 return None
@@ -1007,14 +1012,12 @@ class StepFeatures:
             if gathered:
                 # Some trials only: the cache serves if it is complete and shared;
                 # otherwise the gathered state's present slots hold their shapes.
-                if (
-                    cache is not None
-                    and cache.complete
-                    and _batch_width(cache.shapes) == 1
-                ):
-                    shapes[g] = cache.shapes
-                else:
-                    shapes[g] = group_shapes(group, geometry, ws, ("static", g))
+                shared = _shared_shapes(cache)
+                shapes[g] = (
+                    shared
+                    if shared is not None
+                    else group_shapes(group, geometry, ws, ("static", g))
+                )
                 return shapes[g]
             if cache is None or not cache.fits(group):
                 cache = self._static[g] = _StaticShapes.read(
