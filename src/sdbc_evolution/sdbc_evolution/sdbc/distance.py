@@ -103,11 +103,18 @@ class Segments:
         cls, ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray
     ) -> Segments:
         """The segments from (ax, ay) to (bx, by)."""
-        abx = bx - ax
-        aby = by - ay
-        length2 = abx * abx + aby * aby
-        inverse = np.divide(1.0, length2, out=np.zeros_like(length2), where=length2 > 0)
-        return cls(ax, ay, bx, by, abx, aby, inverse)
+        segments = cls(ax, ay, bx, by, *(np.empty_like(ax) for _ in range(3)))
+        segments.derive()
+        return segments
+
+    def derive(self) -> None:
+        """Recomputes ``abx``, ``aby`` and ``inverse`` in place from the ends
+        (1 / |b - a|^2, 0 for a segment of no length)."""
+        np.subtract(self.bx, self.ax, out=self.abx)
+        np.subtract(self.by, self.ay, out=self.aby)
+        length2 = self.abx * self.abx + self.aby * self.aby
+        self.inverse.fill(0.0)
+        np.divide(1.0, length2, out=self.inverse, where=length2 > 0)
 
     def arrays(self) -> tuple[np.ndarray, ...]:
         """All seven arrays, in field order."""

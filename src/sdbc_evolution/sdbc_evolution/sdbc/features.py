@@ -559,19 +559,11 @@ def _polygons_reader(
     the operations of :func:`group_shapes` (under ``key``) and
     :meth:`Segments.between` (which would make new arrays at every step)."""
     source = ws.get((key, "segments"), (2, 2, *shapes.ax.shape))
-    abx, aby, inverse, length2, squared = (np.empty_like(shapes.ax) for _ in range(5))
-    positive = np.empty(shapes.ax.shape, np.bool_)
-    polygons = Segments(shapes.ax, shapes.ay, shapes.bx, shapes.by, abx, aby, inverse)
+    polygons = Segments.between(shapes.ax, shapes.ay, shapes.bx, shapes.by)
 
     def read(state: TaskState) -> None:
         np.copyto(source, state.groups[g].shapes("segments").transpose(3, 4, 2, 1, 0))
-        np.subtract(polygons.bx, polygons.ax, out=abx)
-        np.subtract(polygons.by, polygons.ay, out=aby)
-        np.multiply(abx, abx, out=length2)
-        np.add(length2, np.multiply(aby, aby, out=squared), out=length2)
-        np.greater(length2, 0, out=positive)
-        inverse.fill(0.0)
-        np.divide(1.0, length2, out=inverse, where=positive)
+        polygons.derive()
 
     return polygons, read
 
