@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import DTypeLike
@@ -125,6 +126,20 @@ Shapes = Discs | Segments
 """The shapes of one group's entity slots at one step."""
 
 
+_SLOT_MAJOR = {"segments": (3, 4, 2, 1, 0), "centres": (2, 1, 0), "radii": (1, 0)}
+"""How a group's batch-first shape arrays turn slot-major: (B, S, P, 2, 2)
+segments to (2 ends, 2 coordinates, P, S, B), (B, S, 2) centres to (2, S, B),
+(B, S) radii to (S, B)."""
+
+
+def slot_major(
+    group: GroupState, name: Literal["centres", "radii", "segments"]
+) -> np.ndarray:
+    """The group's shape array ``name`` ("segments", "centres" or "radii") as a
+    slot-major view, the layout this module's shapes are copied into."""
+    return group.shapes(name).transpose(_SLOT_MAJOR[name])
+
+
 def group_shapes(
     group: GroupState, geometry: Geometry, workspace: Workspace, key: Hashable
 ) -> Shapes:
@@ -141,17 +156,17 @@ def group_shapes(
     """
     if geometry is Geometry.POLYGON:
         # (B, S, P, 2 ends, 2 coordinates) -> (2, 2, P, S, B).
-        source = group.shapes("segments").transpose(3, 4, 2, 1, 0)
+        source = slot_major(group, "segments")
         seg = workspace.get((key, "segments"), source.shape)
         np.copyto(seg, source)
         return Segments.between(ax=seg[0, 0], ay=seg[0, 1], bx=seg[1, 0], by=seg[1, 1])
-    source = group.shapes("centres").transpose(2, 1, 0)
+    source = slot_major(group, "centres")
     centres = workspace.get((key, "centres"), source.shape)
     np.copyto(centres, source)
     radius = None
     if geometry is Geometry.CIRCLE:
         radius = workspace.get((key, "radii"), source.shape[1:])
-        np.copyto(radius, group.shapes("radii").T)
+        np.copyto(radius, slot_major(group, "radii"))
     return Discs(x=centres[0], y=centres[1], r=radius)
 
 

@@ -66,6 +66,7 @@ from sdbc_evolution.sdbc.distance import (
     expand,
     group_shapes,
     pick,
+    slot_major,
 )
 from sdbc_evolution.sdbc.options import PAPER, SdbcOptions
 
@@ -545,9 +546,9 @@ def _discs_reader(
 
     def read(state: TaskState) -> None:
         group = state.groups[g]
-        np.copyto(centres, group.shapes("centres").transpose(2, 1, 0))
+        np.copyto(centres, slot_major(group, "centres"))
         if radii is not None:
-            np.copyto(radii, group.shapes("radii").T)
+            np.copyto(radii, slot_major(group, "radii"))
 
     return read
 
@@ -562,7 +563,7 @@ def _polygons_reader(
     polygons = Segments.between(shapes.ax, shapes.ay, shapes.bx, shapes.by)
 
     def read(state: TaskState) -> None:
-        np.copyto(source, state.groups[g].shapes("segments").transpose(3, 4, 2, 1, 0))
+        np.copyto(source, slot_major(state.groups[g], "segments"))
         polygons.derive()
 
     return polygons, read
