@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from sdbc_evolution.characterise.base import per_controller
 from sdbc_evolution.characterise.registry import (
     CHARACTERISATIONS,
     CharacterisationSpec,
@@ -301,3 +302,10 @@ def check_characterisation(spec: CharacterisationSpec) -> None:
     assert first.shape == (3, len(names)) and first.dtype == np.float64
     assert np.isfinite(first).all()
     np.testing.assert_array_equal(first, again)
+    if spec.registered.part.mean_of_trials:
+        # What it declares: the same trials one per row, averaged per controller
+        # by per_controller, give its vectors to the bit.
+        rows = evaluate_chunk(
+            task_spec, np.repeat(genomes, 2, axis=0), seeds.reshape(-1, 1)
+        ).behaviour(spec.key)
+        np.testing.assert_array_equal(per_controller(rows, 2), first)

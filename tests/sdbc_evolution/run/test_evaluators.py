@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import Any
+
 import numpy as np
 import pytest
+from sdbc_evolution.characterise.registry import CHARACTERISATIONS, parse
+from sdbc_evolution.characterise.sensor_effector import SensorEffectorMean
 from sdbc_evolution.run.evaluators import (
     DaskEvaluator,
     Evaluation,
@@ -107,3 +112,77 @@ def test_bad_batches_and_settings_are_rejected() -> None:
         make_evaluator(SPEC, workers=2, scheduler="tcp://127.0.0.1:9")
     with pytest.raises(ValueError, match="unknown task"):
         TaskInfo.of(TaskSpec("gate_scape"))
+
+
+class _Counting(LocalEvaluator):
+    """A local evaluator that keeps the shapes of the seeds it was asked for."""
+
+    def __init__(self, spec: TaskSpec, workers: int) -> None:
+        super().__init__(spec, workers)
+        self.asked: list[tuple[int, ...]] = []
+
+    def evaluate(self, genomes: np.ndarray, seeds: np.ndarray) -> Evaluation:
+        self.asked.append(np.shape(seeds))
+        return super().evaluate(genomes, seeds)
+
+
+def requests() -> list[tuple[np.ndarray, np.ndarray]]:
+    """A generation (5 x 3 trials), a re-evaluation (one genome, 4 rows of one
+    trial) and 2 x 2 trials."""
+    genomes, seeds = batch()
+    rng = np.random.default_rng(7)
+    best = np.repeat(genomes[2:3], 4, axis=0)
+    return [
+        (genomes, seeds),
+        (best, rng.integers(0, 2**63 - 1, (4, 1), dtype=np.int64)),
+        (genomes[:2] * 0.5, rng.integers(0, 2**63 - 1, (2, 2), dtype=np.int64)),
+    ]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_requests_evaluated_together_are_as_evaluated_apart(workers: int) -> None:
+    spec = TaskSpec(
+        "gate_escape",
+        {"max_steps": 80},
+        characterisations=(parse("state_count"), parse("sensor_effector_mean")),
+    )
+    with _Counting(spec, workers) as evaluator:
+        together = evaluator.evaluate_together(requests())
+        # One batch of a trial per row: 15 + 4 + 4 trials.
+        assert evaluator.asked == [(23, 1)]
+        apart = [evaluator.evaluate(g, s) for g, s in requests()]
+    for a, b in zip(together, apart, strict=True):
+        assert_identical(a, b)
+        assert a.behaviours.keys() == b.behaviours.keys()
+        for key in a.behaviours:
+            np.testing.assert_array_equal(a.behaviour(key), b.behaviour(key), key)
+
+
+class _OwnMean(SensorEffectorMean):
+    """A part that does not say its vectors are the mean of its trials."""
+
+    mean_of_trials = False
+
+
+@pytest.fixture
+def own_mean_part() -> Iterator[str]:
+    CHARACTERISATIONS.register("test_own_mean", _OwnMean)
+    try:
+        yield "test_own_mean"
+    finally:
+        CHARACTERISATIONS._own.pop("test_own_mean")
+
+
+def test_a_part_not_known_to_average_its_trials_is_evaluated_request_by_request(
+    own_mean_part: Any,
+) -> None:
+    spec = TaskSpec(
+        "gate_escape", {"max_steps": 80}, characterisations=(parse(own_mean_part),)
+    )
+    with _Counting(spec, 1) as evaluator:
+        together = evaluator.evaluate_together(requests())
+        assert evaluator.asked == [(5, 3), (4, 1), (2, 2)]
+    with _Counting(SPEC, 1) as evaluator:
+        evaluator.evaluate_together(requests()[:1])
+        assert evaluator.asked == [(5, 3)]  # one request: nothing to join
+    assert [e.fitness.shape for e in together] == [(5,), (4,), (2,)]

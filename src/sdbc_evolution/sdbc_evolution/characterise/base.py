@@ -25,10 +25,17 @@ class Characteriser(ABC):
         options_class: Its options (a settings class, every option defaulted).
         needs_network: It reads the robots' network inputs and outputs
             (``observe_network``), which a task-state stream does not carry.
+        mean_of_trials: Its ``controller_vectors(result, T)`` is, to the bit,
+            :func:`per_controller` of the vectors it gives the same trials one
+            controller each (``T = 1``). Evaluators then run requests with
+            different trials per controller in one batch
+            (``Evaluator.evaluate_together``); a part that cannot say so is
+            evaluated request by request.
     """
 
     options_class: ClassVar[type] = NoOptions
     needs_network: ClassVar[bool] = False
+    mean_of_trials: ClassVar[bool] = False
     observes: bool = True
     """Whether ``run_batch`` should hand it the task states (and, with
     ``observe_network``, the network arrays)."""

@@ -46,6 +46,7 @@ class SdbcCharacteriser(Characteriser):
     """The SDBC of every controller: the mean over its trials of the trial vectors."""
 
     options_class = SdbcOptions
+    mean_of_trials = True
 
     def __init__(self, options: SdbcOptions | None = None) -> None:
         self.options = options or SdbcOptions()

@@ -66,6 +66,7 @@ class StateCount(Characteriser):
 
     options_class = StateCountOptions
     needs_network = True
+    mean_of_trials = True
 
     def __init__(self, options: StateCountOptions | None = None) -> None:
         self.options = options or StateCountOptions()
@@ -141,6 +142,7 @@ class SensorEffectorMean(Characteriser):
 
     options_class = SensorEffectorMeanOptions
     needs_network = True
+    mean_of_trials = True
 
     def __init__(self, options: SensorEffectorMeanOptions | None = None) -> None:
         self.options = options or SensorEffectorMeanOptions()

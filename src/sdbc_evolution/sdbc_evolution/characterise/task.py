@@ -19,6 +19,7 @@ class TaskCharacteriser(Characteriser):
     """The task's own characterisation, each value in [0, 1], mean over trials."""
 
     options_class = TaskOptions
+    mean_of_trials = True
     observes = False
 
     def __init__(self, options: TaskOptions | None = None) -> None:

@@ -35,15 +35,17 @@ import argparse
 import math
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from concurrent.futures import CancelledError, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
+from sdbc_sim.fitness import controller_fitness
 from sdbc_sim.limits import MAX_CONNECT_TIMEOUT, MAX_WORKERS
 
+from sdbc_evolution.characterise.base import per_controller
 from sdbc_evolution.characterise.evaluation import SDBC, TASK, Evaluation
 from sdbc_evolution.characterise.registry import ALWAYS, CharacterisationSpec
 from sdbc_evolution.run.config import PhysicsModel
@@ -386,6 +388,54 @@ class Evaluator(ABC):
         evaluation = Evaluation.concatenate(self._run(genomes, seeds, bounds))
         check_values(evaluation, self.spec)
         return evaluation
+
+    def evaluate_together(
+        self, requests: Sequence[tuple[np.ndarray, np.ndarray]]
+    ) -> list[Evaluation]:
+        """Evaluates several requests, (genomes (G, W), seeds (G, T)) each, with
+        T free to differ between them; each comes back as :meth:`evaluate` would
+        give it, to the bit.
+
+        A batch of few trials pays the engine's cost per step for few robots: a
+        run's re-evaluation (10 trials) alone cost about a quarter of its
+        generation's evaluation (``docs/speed.md``). When every characterisation
+        is the mean of its trials (``Characteriser.mean_of_trials``), the trials
+        of all requests run as one batch, a trial per row, and each request's
+        controller fitness and vectors are summed up from its own trials with
+        the functions and the layout the engine and the characterisers use.
+        Otherwise each request is evaluated on its own.
+
+        Raises:
+            ValueError: A request's genomes and seeds disagree.
+            ValuesOutOfRange: A value breaks the contract (:func:`check_values`).
+        """
+        checked = [_check_batch(g, s) for g, s in requests]
+        if len(checked) < 2 or not all(
+            c.registered.part.mean_of_trials for c in self.spec.all_characterisations()
+        ):
+            return [self.evaluate(g, s) for g, s in checked]
+        joint = self.evaluate(
+            np.concatenate([np.repeat(g, s.shape[1], axis=0) for g, s in checked]),
+            np.concatenate([s.reshape(-1, 1) for _, s in checked]),
+        )
+        evaluations = []
+        start = 0
+        for _, s in checked:
+            n, t = s.shape
+            rows = slice(start, start + n * t)
+            start += n * t
+            trial_fitness = joint.trial_fitness[rows].reshape(n, t).copy()
+            evaluations.append(
+                Evaluation(
+                    fitness=controller_fitness(trial_fitness, self.spec.fitness_mean),
+                    trial_fitness=trial_fitness,
+                    behaviours={
+                        k: per_controller(v[rows], t)
+                        for k, v in joint.behaviours.items()
+                    },
+                )
+            )
+        return evaluations
 
     @abstractmethod
     def close(self) -> None:
