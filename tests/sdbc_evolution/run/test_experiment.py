@@ -165,6 +165,27 @@ def test_chunking_does_not_change_a_run(tmp_path: Path) -> None:
     assert_same_run(tmp_path / "one", tmp_path / "five")
 
 
+class _Apart(ToyEvaluator):
+    """Evaluates every request on its own, as an evaluator of one's own may."""
+
+    def evaluate_together(self, requests):
+        return [self.evaluate(g, s) for g, s in requests]
+
+
+def test_the_next_generation_evaluated_with_the_reevaluation_changes_nothing(
+    tmp_path: Path,
+) -> None:
+    config = small_config("ns-sd+", generations=5)
+    joined = ToyEvaluator()
+    Experiment.create(config, tmp_path / "joined", joined, TOY_INFO).run()
+    apart = _Apart()
+    Experiment.create(config, tmp_path / "apart", apart, TOY_INFO).run()
+    assert_same_run(tmp_path / "joined", tmp_path / "apart")
+    # Generation 0 alone, then each population beside the re-evaluation before
+    # it, and the last re-evaluation alone.
+    assert (joined.calls, apart.calls) == (6, 10)
+
+
 def test_an_existing_run_is_not_overwritten(tmp_path: Path) -> None:
     run(small_config(generations=2), tmp_path)
     before = snapshot(tmp_path)

@@ -13,7 +13,13 @@ the bit-identical resume contract):
 5. re-evaluation of the generation's best (highest fitness) in fresh trials whose
    seeds come from a second generator, so turning re-evaluation on or off does not
    change the run; its fitness sums the trials up like every fitness (harmonic
-   mean by default);
+   mean by default). Unless g is the last generation, the next generation's trial
+   seeds are drawn here (step 1 of g + 1, the same draws) and its population is
+   evaluated in the same batch (``Evaluator.evaluate_together``): on its own, a
+   batch of a few re-evaluation trials pays the engine's cost per step for a few
+   robots. The checkpoint keeps the GA generator as it was before that draw, so a
+   resumed run draws the same seeds and evaluates them on its own, to the same
+   bits;
 6. outputs (``sdbc_evolution.run.results``), then the checkpoint (``checkpoint.npz``).
 
 The run's two generators are children of ``np.random.SeedSequence(seed)``. A run
@@ -35,6 +41,7 @@ import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from sdbc_sim.engine import controller_fitness
@@ -157,6 +164,8 @@ class Experiment:
         self.results = results
         self.lock = lock
         self.timings: dict[str, float] = {}
+        self._next: Evaluation | None = None
+        """The next generation's evaluation, run beside this one's re-evaluation."""
 
     def close(self) -> None:
         """Releases the output directory to other writers."""
@@ -340,8 +349,10 @@ class Experiment:
         g = search.generation
         population, parent, elite = search.population, search.parent, search.elite
         n = population.shape[0]
-        seeds = search.trial_seeds(config.evaluation.trials)
-        evaluation = self.evaluator.evaluate(population, seeds)
+        evaluation, self._next = self._next, None
+        if evaluation is None:
+            seeds = search.trial_seeds(config.evaluation.trials)
+            evaluation = self.evaluator.evaluate(population, seeds)
         self._check_evaluation(evaluation, n)
         clock.lap("evaluation")
         scores = search.score(evaluation.fitness, evaluation.behaviours)
@@ -349,7 +360,10 @@ class Experiment:
         search.breed()
         clock.lap("breeding")
         best = int(np.argmax(evaluation.fitness))
-        reevaluated_fitness, reevaluated_mean = self._reevaluate(population[best])
+        ga_rng = dict(search.rng.bit_generator.state)
+        reevaluated_fitness, reevaluated_mean = self._reevaluate(
+            population[best], with_next=g + 1 < self.generations
+        )
         clock.lap("reevaluation")
         record = GenerationRecord(
             generation=g,
@@ -368,7 +382,7 @@ class Experiment:
         individuals = self._individuals(evaluation, scores, parent, elite)
         self.results.append_generation(record, individuals, population[best])
         clock.lap("outputs")
-        save_checkpoint(self.results.checkpoint_path, self._checkpoint())
+        save_checkpoint(self.results.checkpoint_path, self._checkpoint(ga_rng))
         clock.lap("checkpoint")
         self.timings = clock.phases
         return record
@@ -393,7 +407,10 @@ class Experiment:
         if not np.isfinite(evaluation.fitness).all():
             raise ExperimentError("the evaluator returned NaN or infinite fitness")
 
-    def _reevaluate(self, genome: np.ndarray) -> tuple[float, float]:
+    def _reevaluate(self, genome: np.ndarray, with_next: bool) -> tuple[float, float]:
+        """The best's fitness and mean over fresh trials; ``with_next``: the next
+        generation's population is evaluated in the same batch (step 5 of the
+        module docstring)."""
         trials = self.config.evaluation.reevaluation_trials
         if trials == 0:
             return float("nan"), float("nan")
@@ -402,7 +419,18 @@ class Experiment:
         )
         # One row per trial lets the evaluator spread the trials over its workers;
         # a trial's result does not depend on its batch-mates.
-        evaluation = self.evaluator.evaluate(np.repeat(genome[None], trials, 0), seeds)
+        request = (np.repeat(genome[None], trials, 0), seeds)
+        if with_next:
+            search = self.search
+            upcoming = (
+                search.population,
+                search.trial_seeds(self.config.evaluation.trials),
+            )
+            self._next, evaluation = self.evaluator.evaluate_together(
+                [upcoming, request]
+            )
+        else:
+            evaluation = self.evaluator.evaluate(*request)
         trial_fitness = evaluation.trial_fitness.reshape(1, trials)
         fitness = controller_fitness(trial_fitness, self.config.evaluation.fitness_mean)
         return float(fitness[0]), float(trial_fitness.mean())
@@ -441,7 +469,9 @@ class Experiment:
             **extra,
         }
 
-    def _checkpoint(self) -> Checkpoint:
+    def _checkpoint(self, ga_rng: dict[str, Any] | None = None) -> Checkpoint:
+        """The run's state; ``ga_rng``: the GA generator's state to record, when
+        it has drawn since for a generation not yet taken (step 5)."""
         state = self.search
         return Checkpoint(
             generation=state.generation,
@@ -453,7 +483,7 @@ class Experiment:
             archive_fitness=state.archive.fitness,
             archive_generation=state.archive.generation,
             weights=state.weights,
-            ga_rng=dict(state.rng.bit_generator.state),
+            ga_rng=dict(state.rng.bit_generator.state) if ga_rng is None else ga_rng,
             reevaluation_rng=dict(self.reevaluation_rng.bit_generator.state),
         )
 

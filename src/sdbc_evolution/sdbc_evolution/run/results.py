@@ -28,7 +28,11 @@ The replication study and the analysis read this layout; it is kept stable::
   scoring, breeding, re-evaluation; writing the outputs and the checkpoint comes
   after and is timed by ``bench/generation.py``); ``evaluation_time``: seconds of
   it spent waiting for the evaluator (trials and re-evaluation, with SDBC
-  extraction, in whatever processes);
+  extraction, in whatever processes). With re-evaluation on, a generation's
+  population is evaluated in one batch with the re-evaluation before it
+  (``sdbc_evolution.run.experiment``, step 5), so these seconds are counted in
+  the generation before: generation 0 holds two populations' trials and the
+  last only its re-evaluation;
 - ``weight:<dimension name>``, one per dimension of the weighted characterisation
   (the SDBC's for the paper's treatments): the weights in force, delta + relevance
   (for NS-SD+ the mutual information in bits; empty for unweighted treatments).

@@ -15,7 +15,8 @@ to every trial running ``max_steps``::
 
     c_worst = c_rest + c_eval x max_steps / mean measured trial length
 
-Generation 0 (which builds the task) is left out of the mean.
+Generation 0 (which builds the task, and evaluates its own population besides the
+next one's) is left out of the mean.
 """
 
 from __future__ import annotations
@@ -77,8 +78,12 @@ def probe(
         raise ValueError(f"generations must be at least 2, got {generations}")
     probes = []
     for treatment in preset.treatments:
+        # One generation more than is stepped: a generation evaluates the next
+        # one's population with its re-evaluation (sdbc_evolution.run.experiment),
+        # which the last one of a run does not, so every one stepped here costs
+        # what a generation in the middle of a run costs.
         config = preset.experiment_config(task, treatment, 0).replace(
-            generations=generations
+            generations=generations + 1
         )
         spec = task_spec(config)
         info = TaskInfo.of(spec)
