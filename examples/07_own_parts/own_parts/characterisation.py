@@ -46,6 +46,9 @@ class FinalPosition(Characteriser):
     """The mean final position of a moving group's entities."""
 
     options_class = FinalPositionOptions
+    # Its vectors are per_controller of its trials' (the contract test checks it),
+    # so a run may evaluate a generation and a re-evaluation in one batch.
+    mean_of_trials = True
 
     def names(self, task: Any) -> tuple[str, ...]:
         description = task.description
