@@ -76,13 +76,12 @@ class LiveEvaluator(Evaluator):
     ) -> list[Evaluation]:
         return [self.evaluate_genomes(genomes[a:b], seeds[a:b]) for a, b in bounds]
 
-    def evaluate_together(
-        self, requests: Sequence[tuple[np.ndarray, np.ndarray]]
-    ) -> list[Evaluation]:
-        """Each request on its own: a graph runs one trial at a time, so joining
-        requests saves nothing, and a row per trial would set each genome on the
-        controllers once per trial."""
-        return [self.evaluate(genomes, seeds) for genomes, seeds in requests]
+    @property
+    def joins_requests(self) -> bool:
+        """Never: a graph runs one trial at a time, so joining requests saves
+        nothing, and a row per trial would set each genome on the controllers
+        once per trial."""
+        return False
 
     def _genome_trials(
         self, client: GraphClient, genome: np.ndarray, seeds: np.ndarray

@@ -383,11 +383,14 @@ class Evaluator(ABC):
         Raises:
             ValuesOutOfRange: A value breaks the contract (:func:`check_values`).
         """
-        genomes, seeds = _check_batch(genomes, seeds)
-        bounds = chunk_bounds(genomes.shape[0], self.workers)
-        evaluation = Evaluation.concatenate(self._run(genomes, seeds, bounds))
+        evaluation = self._unchecked(*_check_batch(genomes, seeds))
         check_values(evaluation, self.spec)
         return evaluation
+
+    def _unchecked(self, genomes: np.ndarray, seeds: np.ndarray) -> Evaluation:
+        """:meth:`evaluate` without the values' check, on a checked batch."""
+        bounds = chunk_bounds(genomes.shape[0], self.workers)
+        return Evaluation.concatenate(self._run(genomes, seeds, bounds))
 
     def evaluate_together(
         self, requests: Sequence[tuple[np.ndarray, np.ndarray]]
@@ -407,14 +410,24 @@ class Evaluator(ABC):
 
         Raises:
             ValueError: A request's genomes and seeds disagree.
-            ValuesOutOfRange: A value breaks the contract (:func:`check_values`).
+            ValuesOutOfRange: A value breaks the contract (:func:`check_values`),
+                named in the first request that holds one.
         """
+        evaluations = self.unchecked_together(requests)
+        for evaluation in evaluations:
+            check_values(evaluation, self.spec)
+        return evaluations
+
+    def unchecked_together(
+        self, requests: Sequence[tuple[np.ndarray, np.ndarray]]
+    ) -> list[Evaluation]:
+        """:meth:`evaluate_together` without the values' check, for a caller that
+        checks each request's values on its own (``sdbc_evolution.run.joined``:
+        one run's bad value must not stop the runs evaluated beside it)."""
         checked = [_check_batch(g, s) for g, s in requests]
-        if len(checked) < 2 or not all(
-            c.registered.part.mean_of_trials for c in self.spec.all_characterisations()
-        ):
-            return [self.evaluate(g, s) for g, s in checked]
-        joint = self.evaluate(
+        if len(checked) < 2 or not self.joins_requests:
+            return [self._unchecked(g, s) for g, s in checked]
+        joint = self._unchecked(
             np.concatenate([np.repeat(g, s.shape[1], axis=0) for g, s in checked]),
             np.concatenate([s.reshape(-1, 1) for _, s in checked]),
         )
@@ -436,6 +449,14 @@ class Evaluator(ABC):
                 )
             )
         return evaluations
+
+    @property
+    def joins_requests(self) -> bool:
+        """Whether :meth:`evaluate_together` runs its requests in one batch:
+        when every characterisation is the mean of its trials."""
+        return all(
+            c.registered.part.mean_of_trials for c in self.spec.all_characterisations()
+        )
 
     @abstractmethod
     def close(self) -> None:
