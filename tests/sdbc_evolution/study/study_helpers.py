@@ -56,9 +56,9 @@ def run_contents(run: Path) -> dict[str, object]:
 
 
 def straight_study(preset: StudyPreset, root: Path) -> Path:
-    """``preset`` run in one go, in this process: what any other way of running
-    it must equal."""
-    run_study(preset, root, execution=Execution(workers=1), quiet=True)
+    """``preset`` run in one go, in this process, one run after the other: what
+    any other way of running it must equal."""
+    run_study(preset, root, execution=Execution(workers=1, joined_runs=1), quiet=True)
     return root
 
 

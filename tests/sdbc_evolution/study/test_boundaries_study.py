@@ -84,7 +84,7 @@ def test_the_memory_check_counts_the_runs_that_go_side_by_side(
     preset.write_text(yaml.safe_dump(TINY))
     out = tmp_path / "study"
     argv = ["run", "--preset", str(preset), "--out", str(out), "--quiet"]
-    assert study([*argv, "--workers", "2"]) == 2
+    assert study([*argv, "--workers", "2", "--joined-runs", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert (
@@ -92,6 +92,10 @@ def test_the_memory_check_counts_the_runs_that_go_side_by_side(
         "side by side with 2 processes needs about" in err
     ), err
     assert err.endswith("fewer trials or fewer workers"), err
+    # Joined (the default), the task's four runs share the two processes.
+    assert study([*argv, "--workers", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "in 4 runs side by side with 2 processes needs about" in err, err
     assert not out.exists()  # refused before the study directory
 
 

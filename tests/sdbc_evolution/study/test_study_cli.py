@@ -111,7 +111,15 @@ def test_measure_probes_every_treatment_and_projects_the_study(
     expected = 2 * sum(2 * p.cpu_per_generation for p in probes) / 2
     assert projected_task_seconds(preset, probes, 2, False) == pytest.approx(expected)
     assert main(["measure", "--preset", str(tiny_file), "--generations", "2"]) == 0
-    assert "gate_escape: 2 generations; projected study time" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "gate_escape: 2 generations; projected study time" in captured.out
+    # The tiny preset's two runs of a treatment, joined as a study joins them.
+    assert "gate_escape: probing 2 run(s) of each treatment joined" in captured.err
+    for p in probe(preset, "gate_escape", generations=2, joined=2):
+        assert p.cpu_per_generation > 0 and 0 < p.evaluation_share <= 1
+        assert 0 < p.mean_length <= p.max_steps == 60
+    assert main(["measure", "--preset", str(tiny_file), "--joined-runs", "0"]) == 2
+    assert "error: joined runs must be from 1 to" in capsys.readouterr().err
 
 
 def study_command(preset: Path, out: Path) -> list[str]:

@@ -275,11 +275,45 @@ def test_runs_side_by_side_and_on_dask_equal_runs_in_process(
         assert remote["evaluator"] == "dask" and remote["workers_per_run"] == 1
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_joined_runs_equal_runs_alone_and_their_digest_takes_their_share(
+    tiny_preset: StudyPreset, tmp_path: Path, workers: int
+) -> None:
+    from sdbc_evolution.study.reduce import reduce_run
+    from sdbc_evolution.study.rundirs import load_run
+
+    alone = straight_study(tiny_preset, tmp_path / "alone")
+    joined = tmp_path / "joined"
+    outcome = run_study(
+        tiny_preset, joined, execution=Execution(workers=workers), quiet=True
+    )
+    assert not outcome.failed and all(r.finished for r in outcome.ran)
+    assert_same_study(tiny_preset, alone, joined)
+    group = 4 // workers  # the task's four runs, shared by the processes
+    for spec in study_plan(tiny_preset, joined):
+        note = json.loads((spec.path / EXECUTION_FILE).read_text())[0]
+        assert note["joined_runs"] == group
+        run = load_run(spec.path, joined)
+        digest = reduce_run(run)  # type: ignore[arg-type]
+        wall = read_generations(spec.path)["wall_time"]
+        assert list(digest.wall_time) == list(wall / group)
+    (entry,) = [
+        json.loads(line) for line in (joined / LOG_FILE).read_text().splitlines()
+    ]
+    assert entry["joined_runs"] == group
+    (entry,) = [
+        json.loads(line) for line in (alone / LOG_FILE).read_text().splitlines()
+    ]
+    assert entry["joined_runs"] == 1
+
+
 def test_bad_execution_settings_are_refused() -> None:
     with pytest.raises(ValueError, match="at least 1"):
         Execution(workers=0)
     with pytest.raises(ValueError, match="exclude each other"):
         Execution(workers=2, scheduler="tcp://127.0.0.1:8786")
+    with pytest.raises(ValueError, match="joined runs must be from 1 to"):
+        Execution(joined_runs=0)
 
 
 def test_ctrl_c_when_the_running_runs_had_finished_still_stops_the_session(
@@ -300,7 +334,9 @@ def test_ctrl_c_when_the_running_runs_had_finished_still_stops_the_session(
     monkeypatch.setattr(runner._Children, "poll", poll)
     monkeypatch.setattr(runner._Children, "interrupt", interrupt)
     root = tmp_path / "study"
-    outcome = run_study(tiny_preset, root, execution=Execution(workers=2), quiet=True)
+    # A run per process, so that two wait for a free one.
+    execution = Execution(workers=2, joined_runs=1)
+    outcome = run_study(tiny_preset, root, execution=execution, quiet=True)
     assert outcome.interrupted and not outcome.failed
     plan = study_plan(tiny_preset, root)
     assert [run_status(s).state for s in plan] == [

@@ -112,6 +112,22 @@ class TaskSpec:
             unique.setdefault(spec.key, spec)
         return tuple(unique.values())
 
+    def evaluates_like(self, other: TaskSpec) -> bool:
+        """Whether evaluations for ``other`` are the same arrays as for this
+        spec: the same task, settings, physics and fitness mean, and the same
+        characterisations once the two every evaluation carries are counted."""
+        return (
+            self.key(),
+            self.fitness_mean,
+            self.physics,
+            [c.key for c in self.all_characterisations()],
+        ) == (
+            other.key(),
+            other.fitness_mean,
+            other.physics,
+            [c.key for c in other.all_characterisations()],
+        )
+
     def key(self) -> tuple[str, str]:
         """A hashable identity of the task, for caching built tasks."""
         return (self.name, repr(sorted(self.overrides.items())))

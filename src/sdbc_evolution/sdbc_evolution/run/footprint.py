@@ -18,9 +18,10 @@ The estimate is deliberately simple and on the high side:
   (N x (C + D), a few times), and the novelty archive;
 - ``WORKER_BYTES`` per local worker process (:mod:`sdbc_sim.limits`): a pool of
   W workers starts min(W, N) processes, one chunk of individuals each;
-- runs side by side (``sdbc-study run --workers R``: R runs at once, each in a
-  process of its own evaluating in process): R times a run's trials and arrays,
-  and ``WORKER_BYTES`` for each run's process.
+- runs side by side (``sdbc-study run --workers P``: P processes at once, each
+  evaluating in process one run or several joined, :mod:`.joined`): R runs at
+  once take R times a run's trials and arrays, and ``WORKER_BYTES`` for each of
+  the P processes.
 """
 
 from __future__ import annotations
@@ -66,21 +67,30 @@ class Footprint:
         return self.trials + self.arrays + self.workers
 
 
-def worker_processes(config: ExperimentConfig, workers: int, runs: int = 1) -> int:
+def worker_processes(
+    config: ExperimentConfig, workers: int, runs: int = 1, processes: int | None = None
+) -> int:
     """Processes ``runs`` runs of ``config`` start side by side, each with a local
     pool of ``workers``: a pool starts one process per chunk, and a batch is cut
     into at most one chunk per individual; one worker runs in process. More than
-    one run: each run in a process of its own too."""
+    one run: ``processes`` of their own too (default: one per run; 0: the runs
+    go in this process)."""
     pool = 0 if workers <= 1 else min(workers, config.ga.population_size)
-    return runs * pool + (runs if runs > 1 else 0)
+    own = processes if processes is not None else (runs if runs > 1 else 0)
+    return runs * pool + own
 
 
 def run_footprint(
-    config: ExperimentConfig, info: TaskInfo, workers: int = 1, runs: int = 1
+    config: ExperimentConfig,
+    info: TaskInfo,
+    workers: int = 1,
+    runs: int = 1,
+    processes: int | None = None,
 ) -> Footprint:
     """The peak memory of a generation of ``config`` on the task ``info`` with
     ``workers`` local worker processes (1: in process; a Dask cluster's workers
-    are not on this machine), for ``runs`` such runs side by side."""
+    are not on this machine), for ``runs`` such runs side by side in
+    ``processes`` (:func:`worker_processes`)."""
     n, t = config.ga.population_size, config.evaluation.trials
     w, c, d = info.genome_length, info.characterisation_size, len(info.sdbc_names)
     per_individual = 8 * (w + 2 * t + c + d)
@@ -88,7 +98,7 @@ def run_footprint(
     return Footprint(
         trials=runs * n * t * TRIAL_BYTES,
         arrays=runs * (COPIES * n * per_individual + archive),
-        workers=worker_processes(config, workers, runs) * WORKER_BYTES,
+        workers=worker_processes(config, workers, runs, processes) * WORKER_BYTES,
     )
 
 
@@ -109,31 +119,36 @@ def available_memory() -> int | None:
 
 
 def check_footprint(
-    config: ExperimentConfig, info: TaskInfo, workers: int = 1, runs: int = 1
+    config: ExperimentConfig,
+    info: TaskInfo,
+    workers: int = 1,
+    runs: int = 1,
+    processes: int | None = None,
 ) -> None:
     """Refuses a run whose estimated peak memory exceeds what is available.
 
     Args:
         workers: Local worker processes of a run (1: in process).
-        runs: Runs of ``config`` side by side (a study's ``--workers``).
+        runs: Runs of ``config`` side by side.
+        processes: The processes they go in (:func:`worker_processes`).
 
     Raises:
         FootprintError: Naming the population, the trials, the runs side by side,
             the workers, the estimate and the memory available.
     """
-    footprint = run_footprint(config, info, workers, runs)
+    footprint = run_footprint(config, info, workers, runs, processes)
     need = footprint.total
     have = available_memory()
     if have is None or need <= have:
         return
-    processes = worker_processes(config, workers, runs)
+    started = worker_processes(config, workers, runs, processes)
     kind = "processes" if runs > 1 else "worker processes"
     raise FootprintError(
         f"ga.population_size {config.ga.population_size} x evaluation.trials "
         f"{config.evaluation.trials}"
         + (f" in {runs} runs side by side" if runs > 1 else "")
-        + (f" with {processes} {kind}" if processes else "")
+        + (f" with {started} {kind}" if started else "")
         + f" needs about {need / GIB:.1f} GiB of memory at once, only "
         f"{have / GIB:.1f} GiB available: choose a smaller population"
-        + (", fewer trials or fewer workers" if processes else " or fewer trials")
+        + (", fewer trials or fewer workers" if started else " or fewer trials")
     )

@@ -39,6 +39,10 @@ from sdbc_evolution.run.evaluators import Evaluator, TaskSpec, check_values
 
 T = TypeVar("T")
 
+JOINED_TRIALS = 2000
+"""Trials per batch that a study joins runs up to by default: a robot-step costs
+about the same in larger batches (``docs/speed.md``)."""
+
 Request = tuple[np.ndarray, np.ndarray]
 
 
@@ -197,36 +201,38 @@ class _Job(Generic[T]):
 def run_joined(
     evaluator: Evaluator,
     jobs: Sequence[tuple[TaskSpec, Callable[[Evaluator], T]]],
-) -> list[T]:
+) -> list[T | None]:
     """Runs every job in a thread of its own, its evaluations joined with the
     other jobs' into batches of ``evaluator``, which runs them in this thread.
 
     Args:
-        evaluator: Evaluates the joined batches (its task must be every job's).
+        evaluator: Evaluates the joined batches (its task spec must evaluate
+            like every job's, ``TaskSpec.evaluates_like``).
         jobs: (task, work) pairs; ``work(evaluator)`` is called with the job's
             :class:`JoinedEvaluator`.
 
     Returns:
         What each job's work returned, in order, once every job has ended. A
         KeyboardInterrupt here stops every job at its next evaluation (module
-        docstring) and is not raised again: the jobs' answers say what stopped.
+        docstring) and is not raised again: the jobs' answers say what stopped
+        (None for a job it stopped before its thread started).
 
     Raises:
-        ValueError: A job's task is not the evaluator's.
+        ValueError: A job's task spec does not evaluate like the evaluator's.
         BaseException: The first exception a job's work raised, once every job
             has ended.
     """
     for spec, _ in jobs:
-        if spec != evaluator.spec:
+        if not spec.evaluates_like(evaluator.spec):
             raise ValueError(
                 f"joined runs share one task: {spec} is not the evaluator's "
                 f"{evaluator.spec}"
             )
     joiner = _Joiner(evaluator)
     started = [_Job(joiner, spec, work) for spec, work in jobs]
-    for job in started:
-        job.thread.start()
     try:
+        for job in started:
+            job.thread.start()
         joiner.serve()
     except KeyboardInterrupt:
         joiner.stop()
@@ -235,8 +241,9 @@ def run_joined(
         raise
     finally:
         for job in started:
-            job.thread.join()
+            if job.thread.ident is not None:
+                job.thread.join()
     for job in started:
         if job.error is not None:
             raise job.error
-    return [job.result for job in started]  # type: ignore[misc]
+    return [job.result for job in started]

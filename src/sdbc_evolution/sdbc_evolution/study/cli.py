@@ -43,6 +43,7 @@ from sdbc_evolution.run.evaluators import (
     check_evaluator_arguments,
     quiet_dask_logging,
 )
+from sdbc_evolution.run.joined import JOINED_TRIALS
 from sdbc_evolution.run.stopping import stoppable
 from sdbc_evolution.run.system_errors import one_line_errors
 from sdbc_evolution.study.presets import (
@@ -81,7 +82,15 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     )
     add_evaluator_arguments(
         parser,
-        workers_help="local runs side by side, one process each (default: every core)",
+        workers_help="local processes side by side (default: every core)",
+    )
+    parser.add_argument(
+        "--joined-runs",
+        type=int,
+        metavar="K",
+        help="most runs of a task per process, their generations evaluated in one "
+        f"batch each (default: enough for about {JOINED_TRIALS} trials per batch; "
+        "1: every run alone)",
     )
     parser.add_argument(
         "--shard",
@@ -214,7 +223,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers",
         type=int,
         default=os.cpu_count() or 1,
-        help="runs side by side in the projection (default: every core)",
+        help="processes side by side in the projection (default: every core)",
+    )
+    measure.add_argument(
+        "--joined-runs",
+        type=int,
+        metavar="K",
+        help="runs probed joined, as `run --joined-runs K` would join them "
+        "(default: as `run` does)",
     )
     return parser
 
@@ -246,6 +262,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> tuple[int, Path | None]:
             workers=args.workers,
             scheduler=args.scheduler,
             connect_timeout=args.connect_timeout,
+            joined_runs=args.joined_runs,
         )
         shard = Shard.parse(args.shard) if args.shard is not None else None
         if args.scheduler is not None:
@@ -444,19 +461,31 @@ def _verdicts(args: argparse.Namespace) -> int:
 
 def _measure(args: argparse.Namespace) -> int:
     from sdbc_evolution.study.measure import probe, probe_report
+    from sdbc_evolution.study.runner import Execution
 
     try:
         preset = _preset(args)
+        Execution(joined_runs=args.joined_runs)  # refuses a bad --joined-runs
         if args.workers < 1:
             raise PresetError(f"--workers: must be at least 1, got {args.workers}")
         if args.generations < 2:
             raise PresetError(
                 f"--generations: must be at least 2, got {args.generations}"
             )
-    except PresetError as error:
+    except (PresetError, ValueError) as error:
         return _error(str(error))
     tasks = args.task or list(preset.tasks)
-    probes = {task: probe(preset, task, args.generations) for task in tasks}
+    probes = {}
+    for task in tasks:
+        config = preset.experiment_config(task, preset.treatments[0], 0)
+        # A treatment has the preset's runs to join, at most.
+        joined = min(
+            Execution(joined_runs=args.joined_runs).joined(config), preset.runs
+        )
+        print(
+            f"{task}: probing {joined} run(s) of each treatment joined", file=sys.stderr
+        )
+        probes[task] = probe(preset, task, args.generations, joined)
     print(probe_report(preset, probes, args.workers))
     return 0
 

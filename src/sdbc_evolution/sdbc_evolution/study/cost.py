@@ -46,7 +46,20 @@ CLUSTER_WORKERS = (8, 32, 128, 512)
 
 def workers_per_generation(run: RunData) -> np.ndarray:
     """(G,) workers that evaluated each generation (1 where not recorded)."""
-    workers = np.ones(run.generations)
+    return _per_generation(run, "workers_per_run")
+
+
+def joined_per_generation(run: RunData) -> np.ndarray:
+    """(G,) runs each generation was evaluated with in one process
+    (``sdbc_evolution.run.joined``; 1 where not recorded): its clock counted
+    every one's trials and serial work."""
+    return _per_generation(run, "joined_runs")
+
+
+def _per_generation(run: RunData, key: str) -> np.ndarray:
+    """(G,) the whole number ``key`` of the ``study_run.json`` segment each
+    generation lies in, at least 1 (1 where not recorded)."""
+    values = np.ones(run.generations)
     file = run.path / EXECUTION_FILE
     try:
         segments = json.loads(file.read_text()) if file.is_file() else []
@@ -55,10 +68,10 @@ def workers_per_generation(run: RunData) -> np.ndarray:
     for segment in segments if isinstance(segments, list) else []:
         try:
             lo, hi = int(segment["from_generation"]), int(segment["to_generation"])
-            workers[lo:hi] = max(1, int(segment["workers_per_run"]))
+            values[lo:hi] = max(1, int(segment.get(key, 1)))
         except (KeyError, TypeError, ValueError):
             continue
-    return workers
+    return values
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,15 @@
 """A short probe of what a preset's study will cost on this machine.
 
-For each task, one run of every treatment goes a few generations with the real
-engine, in this process (one core). The cost of a generation is its CPU time
+For each task, runs of every treatment go a few generations with the real
+engine, in this process (one core): as many runs as a study joins in one process
+(``sdbc_evolution.run.joined``; one for the ``paper`` preset, seven for the local
+ones), joined as it joins them. The cost of a run's generation is the CPU time
 (``time.process_time``: what it takes on a core of its own, whatever else loads the
-machine), split into evaluation and the rest by the run's own ``evaluation_time``
-share. Projected study time of a task, with ``k`` runs side by side on ``k`` free
-cores::
+machine) from the end of one generation of every joined run to the end of the
+next, divided by the runs, split into evaluation and the rest by the runs' own
+``evaluation_time`` share (joined, a run's clock counts the whole batch and the
+time it waited for the others: a share on the high side). Projected study time of
+a task, with ``k`` processes side by side on ``k`` free cores::
 
     T_task = runs x sum_treatments(G_task x c_treatment) / k
 
@@ -23,13 +27,17 @@ from __future__ import annotations
 
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.run.evaluators import LocalEvaluator, TaskInfo
+from sdbc_evolution.run.config import ExperimentConfig
+from sdbc_evolution.run.evaluators import Evaluator, LocalEvaluator, TaskInfo
 from sdbc_evolution.run.experiment import Experiment, task_spec
+from sdbc_evolution.run.joined import run_joined
+from sdbc_evolution.run.results import GenerationRecord
 from sdbc_evolution.study.presets import StudyPreset
 
 PROBE_GENERATIONS = 3
@@ -70,50 +78,98 @@ class Probe:
         return self.cpu_per_generation + evaluation * longer
 
 
+Mark = tuple[float, float, GenerationRecord, float]
+"""A probe run's generation: CPU and wall clock at its end, its record, and its
+mean trial length."""
+
+
+def _probe_job(
+    config: ExperimentConfig,
+    where: Path,
+    info: TaskInfo,
+    generations: int,
+    marks: list[Mark],
+) -> Callable[[Evaluator], None]:
+    """A probe run's work: ``generations`` steps, each marked in ``marks``."""
+    length_index = info.sdbc_names.index(LENGTH_DIMENSION)
+
+    def work(evaluator: Evaluator) -> None:
+        with Experiment.create(config, where, evaluator, info) as run:
+            for g in range(generations):
+                record = run.step()
+                with np.load(run.results.individuals_path(g)) as data:
+                    length = float(np.mean(data["sdbc"][:, length_index]))
+                marks.append((time.process_time(), time.perf_counter(), record, length))
+
+    return work
+
+
 def probe(
-    preset: StudyPreset, task: str, generations: int = PROBE_GENERATIONS
+    preset: StudyPreset,
+    task: str,
+    generations: int = PROBE_GENERATIONS,
+    joined: int = 1,
 ) -> list[Probe]:
-    """Measures one short run of every treatment of ``preset`` on ``task``."""
+    """Measures short runs of every treatment of ``preset`` on ``task``,
+    ``joined`` of them at once per treatment (module docstring)."""
     if generations < 2:
         raise ValueError(f"generations must be at least 2, got {generations}")
+    if joined < 1:
+        raise ValueError(f"joined runs must be at least 1, got {joined}")
     probes = []
     for treatment in preset.treatments:
         # One generation more than is stepped: a generation evaluates the next
         # one's population with its re-evaluation (sdbc_evolution.run.experiment),
         # which the last one of a run does not, so every one stepped here costs
         # what a generation in the middle of a run costs.
-        config = preset.experiment_config(task, treatment, 0).replace(
-            generations=generations + 1
-        )
-        spec = task_spec(config)
+        configs = [
+            preset.experiment_config(task, treatment, r).replace(
+                generations=generations + 1
+            )
+            for r in range(joined)
+        ]
+        spec = task_spec(configs[0])
         info = TaskInfo.of(spec)
         max_steps = int(spec.build().max_steps)
-        length_index = info.sdbc_names.index(LENGTH_DIMENSION)
         with (
             tempfile.TemporaryDirectory(prefix="sdbc-probe-") as out,
             LocalEvaluator(spec, workers=1) as evaluator,
         ):
-            experiment = Experiment.create(config, Path(out), evaluator, info)
-            cpu, wall, share, lengths = [], [], [], []
-            for g in range(generations):
-                c0, w0 = time.process_time(), time.perf_counter()
-                record = experiment.step()
-                c1, w1 = time.process_time(), time.perf_counter()
-                if g == 0:
-                    continue
-                cpu.append(c1 - c0)
-                wall.append(w1 - w0)
-                share.append(record.evaluation_time / max(record.wall_time, 1e-12))
-                with np.load(experiment.results.individuals_path(g)) as data:
-                    lengths.append(float(np.mean(data["sdbc"][:, length_index])))
+            # Per run, per generation: (CPU, wall) clocks at its end, its record
+            # and its mean trial length.
+            ends: list[list[Mark]] = [[] for _ in configs]
+            start = (time.process_time(), time.perf_counter())
+            jobs = [
+                (
+                    task_spec(config),
+                    _probe_job(
+                        config, Path(out) / f"run_{r}", info, generations, ends[r]
+                    ),
+                )
+                for r, config in enumerate(configs)
+            ]
+            run_joined(evaluator, jobs)
+        # Generation g of the group ends when its last run ends it.
+        cpu_end = [max(marks[g][0] for marks in ends) for g in range(generations)]
+        wall_end = [max(marks[g][1] for marks in ends) for g in range(generations)]
+        cpu = np.diff([start[0], *cpu_end])[1:] / joined
+        wall = np.diff([start[1], *wall_end])[1:] / joined
+        records = [marks[g] for marks in ends for g in range(1, generations)]
         probes.append(
             Probe(
                 task=task,
                 treatment=treatment.name,
                 cpu_per_generation=float(np.mean(cpu)),
                 wall_per_generation=float(np.mean(wall)),
-                evaluation_share=float(np.mean(share)),
-                mean_length=float(np.mean(lengths)),
+                evaluation_share=float(
+                    np.mean(
+                        [
+                            r.evaluation_time / max(r.wall_time, 1e-12)
+                            for _, _, r, _ in records
+                        ]
+                    )
+                ),
+                mean_length=float(np.mean([length for *_, length in records])),
                 max_steps=max_steps,
             )
         )
@@ -139,7 +195,7 @@ def probe_report(
     """The probes and the projected time per task, as a plain-text table."""
     lines = [
         f"preset {preset.name}: {preset.runs} runs x {len(preset.treatments)} "
-        f"treatments per task, {concurrent_runs} runs side by side",
+        f"treatments per task, {concurrent_runs} processes side by side",
         f"{'task':18} {'treatment':9} {'cpu/gen s':>9} {'worst s':>8} "
         f"{'wall/gen s':>10} {'eval %':>6} {'length':>7}",
     ]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sdbc_evolution.study.cost import workers_per_generation
+from sdbc_evolution.study.cost import joined_per_generation, workers_per_generation
 from sdbc_evolution.study.digest import (
     PresetSummary,
     RunDigest,
@@ -83,6 +83,7 @@ def reduce_run(run: RunData) -> RunDigest:
     level) only for runs that weigh the SDBC."""
     column = curve_column(run)
     weighted = weight_measure(run.config) is not None
+    joined = joined_per_generation(run)
     return RunDigest(
         name=run.name,
         config=run.config,
@@ -90,8 +91,9 @@ def reduce_run(run: RunData) -> RunDigest:
         curve_source=column,
         population=np.array([f.shape[0] for f in run.fitness], dtype=np.int64),
         trial_steps=run.trial_steps,
-        wall_time=run.columns["wall_time"],
-        evaluation_time=run.columns["evaluation_time"],
+        # A run joined with others timed their trials and work too: its share.
+        wall_time=run.columns["wall_time"] / joined,
+        evaluation_time=run.columns["evaluation_time"] / joined,
         workers=workers_per_generation(run),
         information=run_information(run) if weighted else None,
         chance=run_chance_information(run) if weighted else None,

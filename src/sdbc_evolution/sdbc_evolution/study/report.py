@@ -170,6 +170,11 @@ def _wall_times(analysis: Analysis) -> list[str]:
             hows = Counter(
                 f"{s.get('evaluator', '?')} x{s.get('concurrent_runs', '?')} on "
                 f"{s.get('cpu_count', '?')} cores"
+                + (
+                    f", up to {s['joined_runs']} runs joined"
+                    if s.get("joined_runs", 1) > 1
+                    else ""
+                )
                 + (" (shards)" if s.get("shard") else "")
                 + (" (interrupted)" if s.get("interrupted") else "")
                 for s in sessions

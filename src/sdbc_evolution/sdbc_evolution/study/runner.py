@@ -14,12 +14,17 @@ ends with :attr:`StudyOutcome.busy` set. Shards lock only their own runs.
 
 Where the work goes:
 
-- **local** (default): up to ``workers`` runs at once (default: every core), each in
-  a process of its own (made by :mod:`sdbc_evolution.run.processes`) evaluating in
-  process. A study is many independent runs, so
-  this keeps every core busy through the serial parts of a generation (ranking,
-  mutual information, output) that a pool shared by one run would leave idle.
-  ``workers=1`` runs everything in this process.
+- **local** (default): up to ``workers`` processes at once (default: every core),
+  made by :mod:`sdbc_evolution.run.processes`, each evaluating in process. A study
+  is many independent runs, so this keeps every core busy through the serial parts
+  of a generation (ranking, mutual information, output) that a pool shared by one
+  run would leave idle. ``workers=1`` runs everything in this process.
+  Each process runs a group of ``joined_runs`` runs of one task
+  (:mod:`sdbc_evolution.run.joined`): their generations share one engine batch,
+  which at the local studies' sizes costs a robot-step less than the small batch
+  of one run would. By default a group holds as many runs as make about
+  :data:`JOINED_TRIALS` trials per batch, fewer where that leaves a core idle;
+  runs whose characterisations do not all average their trials run alone.
 - **Dask** (``scheduler``): one run after the other, each generation's trials spread
   over the cluster by :class:`~sdbc_evolution.run.evaluators.DaskEvaluator`.
 
@@ -36,10 +41,12 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import queue
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
@@ -49,13 +56,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sdbc_sim.limits import MAX_WORKERS
 
+from sdbc_evolution.run.config import ExperimentConfig
 from sdbc_evolution.run.evaluators import (
     DEFAULT_CONNECT_TIMEOUT,
     Evaluator,
     LocalEvaluator,
     SchedulerLost,
     TaskInfo,
+    TaskSpec,
     make_evaluator,
 )
 from sdbc_evolution.run.experiment import (
@@ -65,6 +75,7 @@ from sdbc_evolution.run.experiment import (
     task_spec,
 )
 from sdbc_evolution.run.footprint import check_footprint
+from sdbc_evolution.run.joined import JOINED_TRIALS, run_joined
 from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
@@ -99,18 +110,27 @@ class Execution:
     """Where runs go.
 
     Attributes:
-        workers: Local runs side by side (None: every core); ignored with Dask.
+        workers: Local processes side by side (None: every core); ignored with
+            Dask.
         scheduler: Address of a Dask scheduler, or None for local.
         connect_timeout: Seconds to wait for the scheduler.
+        joined_runs: Most runs of a task joined in one process (module
+            docstring); None: enough for about :data:`JOINED_TRIALS` trials per
+            batch; 1: every run alone. Local only.
     """
 
     workers: int | None = None
     scheduler: str | None = None
     connect_timeout: float = DEFAULT_CONNECT_TIMEOUT
+    joined_runs: int | None = None
 
     def __post_init__(self) -> None:
         if self.workers is not None and self.workers < 1:
             raise ValueError(f"workers must be at least 1, got {self.workers}")
+        if self.joined_runs is not None and not 1 <= self.joined_runs <= MAX_WORKERS:
+            raise ValueError(
+                f"joined runs must be from 1 to {MAX_WORKERS}, got {self.joined_runs}"
+            )
         if self.workers is not None and self.scheduler is not None:
             raise ValueError(
                 "workers and scheduler exclude each other: the Dask cluster "
@@ -124,6 +144,19 @@ class Execution:
         if self.scheduler is not None:
             return 1
         return self.workers if self.workers is not None else (os.cpu_count() or 1)
+
+    def joined(self, config: ExperimentConfig) -> int:
+        """Most runs of ``config``'s task joined in one process (1 with Dask)."""
+        if self.scheduler is not None:
+            return 1
+        if self.joined_runs is not None:
+            return self.joined_runs
+        evaluation = config.evaluation
+        per_generation = (
+            config.ga.population_size * evaluation.trials
+            + evaluation.reevaluation_trials
+        )
+        return max(1, min(MAX_WORKERS, JOINED_TRIALS // per_generation))
 
 
 @dataclass
@@ -233,10 +266,12 @@ def run_study(
         # Runs of a task differ in seed and treatment only: one check per task,
         # for as many of its runs side by side as will run at once.
         runs = sum(s.task == spec.task for s in plan)
+        slots = execution.concurrent_runs
         check_footprint(
             spec.config,
             TaskInfo.of(task_spec(spec.config)),
-            runs=min(runs, execution.concurrent_runs),
+            runs=min(runs, slots * execution.joined(spec.config)),
+            processes=min(runs, slots) if slots > 1 else 0,
         )
     if execution.scheduler is not None:
         # An unreachable scheduler fails here, before anything is written.
@@ -281,13 +316,14 @@ def run_study(
             started = time.time()
             results: list[RunOutcome] = []
             aborted = ""
+            groups = _groups(task_todo, execution)
             try:
                 if execution.scheduler is not None:
                     results = _run_dask(task_todo, execution, progress)
                 elif execution.concurrent_runs == 1:
-                    results = _run_in_process(task_todo, progress)
+                    results = _run_in_process(groups, progress)
                 else:
-                    results = _run_processes(task_todo, execution, progress)
+                    results = _run_processes(groups, execution, progress)
             except BaseException as error:
                 aborted = type(error).__name__
                 raise
@@ -306,6 +342,7 @@ def run_study(
                         "elapsed_s": round(elapsed, 3),
                         "evaluator": "dask" if execution.scheduler else "local",
                         "concurrent_runs": execution.concurrent_runs,
+                        "joined_runs": max(len(g) for g in groups),
                         "cpu_count": os.cpu_count(),
                         "runs": sum(s.task == task for s in plan),
                         "finished_before": sum(
@@ -545,15 +582,101 @@ def _run_one_by_one(
     return results
 
 
-def _run_in_process(
-    todo: list[tuple[RunSpec, int]], progress: _Progress
+Group = list[tuple[RunSpec, int]]
+"""Runs (with their generations done) that share one process."""
+
+
+def _groups(todo: Group, execution: Execution) -> list[Group]:
+    """The runs of ``todo`` (one task) in the groups that share a process: runs
+    of one task spec that joins requests, at most ``execution.joined`` of them,
+    cut so that no process slot is left with fewer groups than the others."""
+    kinds: list[tuple[TaskSpec, Group]] = []
+    for item in todo:
+        spec = task_spec(item[0].config)
+        same = next((runs for kind, runs in kinds if kind.evaluates_like(spec)), None)
+        if same is None:
+            kinds.append((spec, [item]))
+        else:
+            same.append(item)
+    groups: list[Group] = []
+    slots = execution.concurrent_runs
+    for spec, runs in kinds:
+        most = execution.joined(runs[0][0].config)
+        if most == 1 or not LocalEvaluator(spec, workers=1).joins_requests:
+            groups += [[item] for item in runs]
+            continue
+        rounds = math.ceil(len(runs) / (slots * most))
+        size = math.ceil(len(runs) / (slots * rounds))
+        groups += [runs[i : i + size] for i in range(0, len(runs), size)]
+    return groups
+
+
+def _run_in_process(groups: list[Group], progress: _Progress) -> list[RunOutcome]:
+    note = _note(Execution(workers=1), 1)
+    lock = threading.Lock()
+
+    def advance(spec: RunSpec, generation: int) -> None:
+        with lock:  # the joined runs' threads share the display
+            progress.generation(spec.name, generation, spec.generations)
+
+    results: list[RunOutcome] = []
+    for group in groups:
+        if len(group) == 1:
+            results += _run_one_by_one(
+                group,
+                progress,
+                lambda spec: LocalEvaluator(task_spec(spec.config), workers=1),
+                note,
+            )
+        else:
+            for spec, done in group:
+                progress.started(spec.name, done, spec.generations)
+            joined = _run_group([spec for spec, _ in group], note, advance)
+            for result in joined:
+                progress.ended(result.name, result.finished)
+            results += joined
+        if any(r.interrupted for r in results):
+            break
+    return results
+
+
+def _run_group(
+    group: list[RunSpec],
+    note: dict[str, Any],
+    advance: Callable[[RunSpec, int], None],
 ) -> list[RunOutcome]:
-    return _run_one_by_one(
-        todo,
-        progress,
-        lambda spec: LocalEvaluator(task_spec(spec.config), workers=1),
-        _note(Execution(workers=1), 1),
-    )
+    """Runs ``group`` joined (:mod:`sdbc_evolution.run.joined`) in this process;
+    each run's failure is its own outcome, as a run alone in a process."""
+    note = {**note, "joined_runs": len(group)}
+
+    def job(spec: RunSpec) -> tuple[TaskSpec, Callable[[Evaluator], RunOutcome]]:
+        def work(evaluator: Evaluator) -> RunOutcome:
+            try:
+                return execute_run(spec, evaluator, lambda g: advance(spec, g), note)
+            except KeyboardInterrupt:
+                done = run_status(spec).generations_done
+                return RunOutcome(spec.name, done, False, interrupted=True)
+            except Exception as error:
+                return RunOutcome(
+                    spec.name,
+                    run_status(spec).generations_done,
+                    False,
+                    describe_failure(error, "sdbc-study"),
+                    system=isinstance(error, (OSError, MemoryError)),
+                )
+
+        return task_spec(spec.config), work
+
+    with LocalEvaluator(task_spec(group[0].config), workers=1) as evaluator:
+        outcomes = run_joined(evaluator, [job(spec) for spec in group])
+    return [
+        outcome
+        if outcome is not None
+        else RunOutcome(
+            spec.name, run_status(spec).generations_done, False, interrupted=True
+        )
+        for spec, outcome in zip(group, outcomes, strict=True)
+    ]
 
 
 def _run_dask(
@@ -584,12 +707,31 @@ def _interrupt_once(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
 
 
-def _child(spec: RunSpec, note: dict[str, Any], messages: Any) -> None:
-    """One run in a process of its own; everything it says goes to ``messages``."""
+def _child(group: list[RunSpec], note: dict[str, Any], messages: Any) -> None:
+    """Runs in a process of their own, joined if several; everything they say
+    goes to ``messages``."""
     for sig in STOP_SIGNALS:
         signal.signal(sig, _interrupt_once)
-    # One run per core: BLAS threads in k-means would only oversubscribe.
+    # One process per core: BLAS threads in k-means would only oversubscribe.
     limit_threads()
+    if len(group) > 1:
+        try:
+            results = _run_group(
+                group,
+                note,
+                lambda spec, g: messages.put(("generation", spec.name, g)),
+            )
+        except KeyboardInterrupt:  # before the runs started
+            results = [
+                RunOutcome(
+                    s.name, run_status(s).generations_done, False, interrupted=True
+                )
+                for s in group
+            ]
+        for result in results:
+            messages.put(("done", result.name, result))
+        return
+    spec = group[0]
     try:
         with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
             result = execute_run(
@@ -625,10 +767,18 @@ class _Children:
         self.results: dict[str, RunOutcome] = {}
         self.stopping = False
 
-    def start(self, spec: RunSpec, done: int) -> None:
-        process = start_process(_child, (spec, self.note, self.messages), spec.name)
-        self.running[spec.name] = (process, spec)
-        self.progress.started(spec.name, done, spec.generations)
+    def start(self, group: Group) -> None:
+        specs = [spec for spec, _ in group]
+        name = specs[0].name + (f" and {len(specs) - 1} more" if len(specs) > 1 else "")
+        process = start_process(_child, (specs, self.note, self.messages), name)
+        for spec, done in group:
+            self.running[spec.name] = (process, spec)
+            self.progress.started(spec.name, done, spec.generations)
+
+    @property
+    def processes(self) -> list[Any]:
+        """The processes running, each once."""
+        return list({id(p): p for p, _ in self.running.values()}.values())
 
     def poll(self) -> None:
         """Handles one message, or looks for children that died without one."""
@@ -653,7 +803,8 @@ class _Children:
             self.progress.generation(name, payload, spec.generations)
         elif kind == "done":
             process, _ = self.running.pop(name)
-            process.join()
+            if all(p is not process for p, _ in self.running.values()):
+                process.join()
             self.results[name] = payload
             self.progress.ended(name, payload.finished)
             self.stopping = self.stopping or payload.interrupted or payload.system
@@ -661,38 +812,39 @@ class _Children:
     def interrupt(self) -> None:
         """Asks every running child to stop (they checkpoint atomically)."""
         self.stopping = True
-        for process, _ in self.running.values():
+        for process in self.processes:
             if process.is_alive() and process.pid is not None:
                 os.kill(process.pid, signal.SIGINT)
 
 
 def _run_processes(
-    todo: list[tuple[RunSpec, int]], execution: Execution, progress: _Progress
+    groups: list[Group], execution: Execution, progress: _Progress
 ) -> list[RunOutcome]:
     children = _Children(execution.concurrent_runs, _note(execution, 1), progress)
-    waiting = list(todo)
+    waiting = list(groups)
     try:
         while waiting or children.running:
             try:
                 while (
                     waiting
                     and not children.stopping
-                    and len(children.running) < children.slots
+                    and len(children.processes) < children.slots
                 ):
-                    children.start(*waiting.pop(0))
+                    children.start(waiting.pop(0))
                 children.poll()
             except KeyboardInterrupt:
                 children.interrupt()
             if children.stopping:
                 # Runs not started yet are stopped too (even when every running
                 # child had finished before the signal): the session says so.
-                for spec, done in waiting:
-                    children.results[spec.name] = RunOutcome(
-                        spec.name, done, finished=False, interrupted=True
-                    )
+                for group in waiting:
+                    for spec, done in group:
+                        children.results[spec.name] = RunOutcome(
+                            spec.name, done, finished=False, interrupted=True
+                        )
                 waiting.clear()
     finally:
-        for process, _ in children.running.values():
+        for process in children.processes:
             process.terminate()
             process.join()
         children.messages.close()
