@@ -465,7 +465,7 @@ def _measure(args: argparse.Namespace) -> int:
 
     try:
         preset = _preset(args)
-        Execution(joined_runs=args.joined_runs)  # refuses a bad --joined-runs
+        execution = Execution(joined_runs=args.joined_runs)
         if args.workers < 1:
             raise PresetError(f"--workers: must be at least 1, got {args.workers}")
         if args.generations < 2:
@@ -479,9 +479,7 @@ def _measure(args: argparse.Namespace) -> int:
     for task in tasks:
         config = preset.experiment_config(task, preset.treatments[0], 0)
         # A treatment has the preset's runs to join, at most.
-        joined = min(
-            Execution(joined_runs=args.joined_runs).joined(config), preset.runs
-        )
+        joined = min(execution.joined(config), preset.runs)
         print(
             f"{task}: probing {joined} run(s) of each treatment joined", file=sys.stderr
         )

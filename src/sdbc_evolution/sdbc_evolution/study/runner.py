@@ -651,32 +651,43 @@ def _run_group(
 
     def job(spec: RunSpec) -> tuple[TaskSpec, Callable[[Evaluator], RunOutcome]]:
         def work(evaluator: Evaluator) -> RunOutcome:
-            try:
-                return execute_run(spec, evaluator, lambda g: advance(spec, g), note)
-            except KeyboardInterrupt:
-                done = run_status(spec).generations_done
-                return RunOutcome(spec.name, done, False, interrupted=True)
-            except Exception as error:
-                return RunOutcome(
-                    spec.name,
-                    run_status(spec).generations_done,
-                    False,
-                    describe_failure(error, "sdbc-study"),
-                    system=isinstance(error, (OSError, MemoryError)),
-                )
+            return _outcome(
+                spec,
+                lambda: execute_run(spec, evaluator, lambda g: advance(spec, g), note),
+            )
 
         return task_spec(spec.config), work
 
     with LocalEvaluator(task_spec(group[0].config), workers=1) as evaluator:
         outcomes = run_joined(evaluator, [job(spec) for spec in group])
     return [
-        outcome
-        if outcome is not None
-        else RunOutcome(
-            spec.name, run_status(spec).generations_done, False, interrupted=True
-        )
+        outcome if outcome is not None else _interrupted(spec)
         for spec, outcome in zip(group, outcomes, strict=True)
     ]
+
+
+def _outcome(spec: RunSpec, run: Callable[[], RunOutcome]) -> RunOutcome:
+    """``run()``, or what stopped it as the run's outcome: interrupted, or failed
+    (``system`` for an error every run would meet: no disk, no memory)."""
+    try:
+        return run()
+    except KeyboardInterrupt:
+        return _interrupted(spec)
+    except Exception as error:
+        return RunOutcome(
+            spec.name,
+            run_status(spec).generations_done,
+            False,
+            describe_failure(error, "sdbc-study"),
+            system=isinstance(error, (OSError, MemoryError)),
+        )
+
+
+def _interrupted(spec: RunSpec) -> RunOutcome:
+    """The outcome of ``spec`` stopped by Ctrl-C, at the generations it has."""
+    return RunOutcome(
+        spec.name, run_status(spec).generations_done, False, interrupted=True
+    )
 
 
 def _run_dask(
@@ -722,37 +733,22 @@ def _child(group: list[RunSpec], note: dict[str, Any], messages: Any) -> None:
                 lambda spec, g: messages.put(("generation", spec.name, g)),
             )
         except KeyboardInterrupt:  # before the runs started
-            results = [
-                RunOutcome(
-                    s.name, run_status(s).generations_done, False, interrupted=True
-                )
-                for s in group
-            ]
+            results = [_interrupted(s) for s in group]
         for result in results:
             messages.put(("done", result.name, result))
         return
     spec = group[0]
-    try:
+
+    def alone() -> RunOutcome:
         with LocalEvaluator(task_spec(spec.config), workers=1) as evaluator:
-            result = execute_run(
+            return execute_run(
                 spec,
                 evaluator,
                 lambda g: messages.put(("generation", spec.name, g)),
                 note,
             )
-    except KeyboardInterrupt:
-        result = RunOutcome(
-            spec.name, run_status(spec).generations_done, False, interrupted=True
-        )
-    except Exception as error:
-        result = RunOutcome(
-            spec.name,
-            run_status(spec).generations_done,
-            False,
-            describe_failure(error, "sdbc-study"),
-            system=isinstance(error, (OSError, MemoryError)),
-        )
-    messages.put(("done", spec.name, result))
+
+    messages.put(("done", spec.name, _outcome(spec, alone)))
 
 
 class _Children:
