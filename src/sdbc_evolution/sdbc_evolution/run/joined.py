@@ -151,10 +151,6 @@ class JoinedEvaluator(Evaluator):
     def workers(self) -> int:
         return self._joiner.evaluator.workers
 
-    @property
-    def joins_requests(self) -> bool:
-        return self._joiner.evaluator.joins_requests
-
     def _run(
         self, genomes: np.ndarray, seeds: np.ndarray, bounds: list[tuple[int, int]]
     ) -> list[Evaluation]:
