@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 BENCH = Path(__file__).resolve().parent.parent / "bench"
 # Appended, not prepended: bench/profile.py must not shadow the standard library's
@@ -180,35 +179,17 @@ def test_mase_goals_parse_and_refuse() -> None:
 
 
 def test_study_bench_runs_a_cut_preset_alone_and_joined(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     study = common.bench_module("study")
-    preset = tmp_path / "tiny.yaml"
-    preset.write_text(
-        yaml.safe_dump(
-            {
-                "name": "tiny",
-                "runs": 2,
-                "seed": 5,
-                "tasks": ["gate_escape"],
-                "treatments": ["fit", "ns-sd+"],
-                "generations": {"gate_escape": 2},
-                "task_config": {"gate_escape": {"max_steps": 60}},
-                "experiment": {
-                    "ga": {"population_size": 6, "elites": 1, "tournament_size": 2},
-                    "novelty": {"k": 3},
-                    "evaluation": {"trials": 2, "reevaluation_trials": 2},
-                },
-            }
-        )
-    )
-    argv = ["--preset", str(preset), "--runs", "1", "--generations", "2"]
+    preset = BENCH.parent / "configs" / "study" / "smoke.yaml"
+    argv = ["--preset", str(preset), "--task", "gate_escape", "--runs", "1"]
     cores = os.sched_getaffinity(0)
     try:
-        assert study.main([*argv, "--alternations", "1"]) == 0
+        assert study.main([*argv, "--generations", "2", "--alternations", "1"]) == 0
     finally:
         os.sched_setaffinity(0, cores)  # the bench pins the process it runs in
     out = capsys.readouterr().out
-    assert "tiny.yaml cut to 1 runs per treatment and 2 generations" in out
+    assert "smoke.yaml cut to 1 runs per treatment and 2 generations" in out
     (row,) = [line for line in out.splitlines() if line.startswith("gate_escape")]
     assert row.endswith("yes")
