@@ -3,6 +3,7 @@ value or an error stopping only whom it concerns, Ctrl-C stopping all."""
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -140,3 +141,48 @@ def test_a_run_that_fails_is_raised_once_every_run_has_ended() -> None:
 def test_runs_of_another_task_are_refused() -> None:
     with pytest.raises(ValueError, match="joined runs share one task"):
         run_joined(ToyEvaluator(), [(TaskSpec("gate_escape"), lambda e: None)])
+
+
+@pytest.mark.parametrize("where", ["checking values", "handing out answers"])
+def test_ctrl_c_anywhere_in_the_serving_thread_stops_every_run(
+    monkeypatch: pytest.MonkeyPatch, where: str
+) -> None:
+    """A signal lands wherever the serving thread is: after a batch, while its
+    answers are checked or handed out, the runs waiting for them stop all the
+    same."""
+    from sdbc_evolution.run import joined
+
+    if where == "checking values":
+
+        def interrupted(evaluation: Evaluation, spec: TaskSpec) -> None:
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(joined, "check_values", interrupted)
+    else:
+        original = joined._Joiner._answer
+
+        def answer_then_interrupted(self, asked):  # type: ignore[no-untyped-def]
+            original(self, asked)
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(joined._Joiner, "_answer", answer_then_interrupted)
+
+    def looping(evaluator: Evaluator) -> str:
+        try:
+            for _ in range(5):
+                evaluator.evaluate(np.zeros((2, 6)), np.ones((2, 1), dtype=np.int64))
+        except KeyboardInterrupt:
+            return "interrupted"
+        return "finished"
+
+    outcome: list[object] = []
+    serving = threading.Thread(
+        target=lambda: outcome.append(
+            run_joined(ToyEvaluator(), [(ToyEvaluator.spec, looping)] * 3)
+        ),
+        daemon=True,
+    )
+    serving.start()
+    serving.join(timeout=60)
+    assert not serving.is_alive(), "a run still waits for an answer"
+    assert outcome == [["interrupted"] * 3]

@@ -74,8 +74,12 @@ class _Joiner:
                 raise KeyboardInterrupt
             self._asked[member] = requests
             self._changed.notify_all()
-            while member not in self._answers:
+            # Stopped, a request may be lost with the batch it was taken into:
+            # a Ctrl-C can land anywhere in the serving thread.
+            while member not in self._answers and not self._stopped:
                 self._changed.wait()
+            if member not in self._answers:
+                raise KeyboardInterrupt
             answer = self._answers.pop(member)
         if isinstance(answer, BaseException):
             raise answer
@@ -101,13 +105,6 @@ class _Joiner:
         except Exception as error:
             # Every run of the batch met it: each raises its own copy.
             answers = {member: copy.copy(error) for member in asked}
-        except BaseException:
-            # A Ctrl-C inside the batch: the runs waiting for it stop.
-            with self._changed:
-                for member in asked:
-                    self._answers[member] = KeyboardInterrupt()
-                self._changed.notify_all()
-            raise
         else:
             start = 0
             for member, requests in asked.items():
@@ -125,12 +122,10 @@ class _Joiner:
             self._changed.notify_all()
 
     def stop(self) -> None:
-        """Every member waiting gets KeyboardInterrupt, and every later request."""
+        """Every member waiting and not answered yet gets KeyboardInterrupt, and
+        so does every later request."""
         with self._changed:
             self._stopped = True
-            for member in self._asked:
-                self._answers[member] = KeyboardInterrupt()
-            self._asked.clear()
             self._changed.notify_all()
 
 
