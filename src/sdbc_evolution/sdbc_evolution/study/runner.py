@@ -48,7 +48,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -710,11 +710,15 @@ def _run_dask(
         )
 
 
+def _ignore_stop_signals() -> None:
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+
+
 def _interrupt_once(signum: int, frame: Any) -> None:
     # The terminal, the parent and a scheduler may all signal: stop once, then
     # let the run write its outputs in peace.
-    for sig in STOP_SIGNALS:
-        signal.signal(sig, signal.SIG_IGN)
+    _ignore_stop_signals()
     raise KeyboardInterrupt
 
 
@@ -732,8 +736,9 @@ def _child(group: list[RunSpec], note: dict[str, Any], messages: Any) -> None:
                 note,
                 lambda spec, g: messages.put(("generation", spec.name, g)),
             )
-        except KeyboardInterrupt:  # before the runs started
+        except KeyboardInterrupt:  # before the runs started or once they ended
             results = [_interrupted(s) for s in group]
+        _ignore_stop_signals()  # the runs have ended: their reports must go out
         for result in results:
             messages.put(("done", result.name, result))
         return
@@ -748,7 +753,9 @@ def _child(group: list[RunSpec], note: dict[str, Any], messages: Any) -> None:
                 note,
             )
 
-    messages.put(("done", spec.name, _outcome(spec, alone)))
+    outcome = _outcome(spec, alone)
+    _ignore_stop_signals()
+    messages.put(("done", spec.name, outcome))
 
 
 class _Children:
@@ -818,33 +825,59 @@ def _run_processes(
 ) -> list[RunOutcome]:
     children = _Children(execution.concurrent_runs, _note(execution, 1), progress)
     waiting = list(groups)
-    try:
-        while waiting or children.running:
-            try:
-                while (
-                    waiting
-                    and not children.stopping
-                    and len(children.processes) < children.slots
-                ):
-                    children.start(waiting.pop(0))
-                children.poll()
-            except KeyboardInterrupt:
-                children.interrupt()
-            if children.stopping:
-                # Runs not started yet are stopped too (even when every running
-                # child had finished before the signal): the session says so.
-                for group in waiting:
-                    for spec, done in group:
-                        children.results[spec.name] = RunOutcome(
-                            spec.name, done, finished=False, interrupted=True
-                        )
-                waiting.clear()
-    finally:
-        for process in children.processes:
-            process.terminate()
-            process.join()
-        children.messages.close()
+    forwarded = False
+    with _noting_stop_signals() as signalled:
+        try:
+            while waiting or children.running:
+                try:
+                    while (
+                        waiting
+                        and not children.stopping
+                        and len(children.processes) < children.slots
+                    ):
+                        children.start(waiting.pop(0))
+                    children.poll()
+                except KeyboardInterrupt:
+                    signalled.set()
+                if signalled.is_set() and not forwarded:
+                    forwarded = True
+                    children.interrupt()
+                if children.stopping:
+                    # Runs not started yet are stopped too (even when every
+                    # running child had finished before the signal): the
+                    # session says so.
+                    for group in waiting:
+                        for spec, done in group:
+                            children.results[spec.name] = RunOutcome(
+                                spec.name, done, finished=False, interrupted=True
+                            )
+                    waiting.clear()
+        finally:
+            for process in children.processes:
+                process.terminate()
+                process.join()
+            children.messages.close()
     return list(children.results.values())
+
+
+@contextlib.contextmanager
+def _noting_stop_signals() -> Iterator[threading.Event]:
+    """Within the block, SIGINT and SIGTERM set the event rather than raise
+    KeyboardInterrupt: raised inside a read of the children's queue, it could
+    lose a child's report or cut it in half. (Outside the main thread, where
+    no handler can be set, nothing changes.)"""
+    signalled = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield signalled
+        return
+    previous = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, lambda signum, frame: signalled.set())
+    try:
+        yield signalled
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _log_session(root: Path, entry: dict[str, Any]) -> None:
