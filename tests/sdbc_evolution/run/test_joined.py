@@ -3,6 +3,8 @@ value or an error stopping only whom it concerns, Ctrl-C stopping all."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -161,8 +163,8 @@ def test_ctrl_c_anywhere_in_the_serving_thread_stops_every_run(
     else:
         original = joined._Joiner._answer
 
-        def answer_then_interrupted(self, asked):  # type: ignore[no-untyped-def]
-            original(self, asked)
+        def answer_then_interrupted(self, asked, signals):  # type: ignore[no-untyped-def]
+            original(self, asked, signals)
             raise KeyboardInterrupt
 
         monkeypatch.setattr(joined._Joiner, "_answer", answer_then_interrupted)
@@ -186,3 +188,109 @@ def test_ctrl_c_anywhere_in_the_serving_thread_stops_every_run(
     serving.join(timeout=60)
     assert not serving.is_alive(), "a run still waits for an answer"
     assert outcome == [["interrupted"] * 3]
+
+
+_SCRIPT_START = """
+import os, random, signal, sys, threading, time
+import numpy as np
+sys.path[:0] = {paths!r}
+from evolution_helpers import ToyEvaluator
+from sdbc_evolution.run import joined
+
+signal.signal(signal.SIGINT, signal.default_int_handler)
+
+def looping(evaluator):
+    try:
+        while True:
+            evaluator.evaluate(np.zeros((2, 6)), np.ones((2, 1), dtype=np.int64))
+    except KeyboardInterrupt:
+        return "interrupted"
+"""
+"""A script's first lines: the test runs' paths, Ctrl-C as KeyboardInterrupt, a
+run that evaluates until stopped."""
+
+_CTRL_C_ANYWHERE = """
+rng = random.Random(7)
+for attempt in range({attempts}):
+    delay = rng.uniform(0.0, 0.02)
+    threading.Timer(delay, os.kill, (os.getpid(), signal.SIGINT)).start()
+    try:
+        outcome = joined.run_joined(ToyEvaluator(), [(ToyEvaluator.spec, looping)] * 3)
+    except KeyboardInterrupt:
+        outcome = ["raised"]  # the signal came as the runs ended: as alone
+    # None: a run whose thread the signal came before (run_joined's contract).
+    assert outcome == ["raised"] or set(outcome) <= {{"interrupted", None}}, outcome
+    time.sleep(0.03)  # the timer has fired
+print("done", flush=True)
+"""
+
+
+def test_one_ctrl_c_at_any_moment_stops_the_joined_runs(tmp_path: Path) -> None:
+    """A real SIGINT, at a random moment, many times over: whatever the serving
+    thread was doing (taking the joiner's lock, waiting, answering), the runs
+    stop and run_joined returns; none is left waiting for a lock or an answer."""
+    script = tmp_path / "ctrl_c.py"
+    here = str(Path(__file__).parent)
+    script.write_text(
+        (_SCRIPT_START + _CTRL_C_ANYWHERE).format(paths=[here, *sys.path], attempts=100)
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=240
+    )
+    assert done.returncode == 0 and "done" in done.stdout, done.stderr[-2000:]
+
+
+_SIGNAL_AS_THE_LOCK_IS_TAKEN = """
+joiners = []
+original_init = joined._Joiner.__init__
+
+def recording_init(self, evaluator):
+    original_init(self, evaluator)
+    joiners.append(self)
+
+joined._Joiner.__init__ = recording_init
+
+class Meddling(ToyEvaluator):
+    def _run(self, genomes, seeds, bounds):
+        if self.calls == 2:
+            taken = threading.Event()
+
+            def meddle():
+                with joiners[0]._changed:
+                    taken.set()
+                    time.sleep(0.3)  # the serving thread now waits for the lock
+                # It gets the lock, then waits for the interpreter, which this
+                # thread keeps while the signal arrives.
+                os.kill(os.getpid(), signal.SIGINT)
+                end = time.monotonic() + 0.05
+                while time.monotonic() < end:
+                    pass
+
+            threading.Thread(target=meddle, daemon=True).start()
+            taken.wait()
+        return super()._run(genomes, seeds, bounds)
+
+print(joined.run_joined(Meddling(), [(ToyEvaluator.spec, looping)] * 3), flush=True)
+"""
+
+
+def test_a_signal_handled_just_as_the_joiners_lock_is_taken_stops_every_run(
+    tmp_path: Path,
+) -> None:
+    """The serving thread waits for the joiner's lock, gets it, and handles a
+    SIGINT before its next line: raised there, KeyboardInterrupt would leave the
+    lock taken and every run waiting for it (a study hung so). Held until the
+    lock is let go, it stops every run."""
+    script = tmp_path / "signal_at_lock.py"
+    here = str(Path(__file__).parent)
+    script.write_text(
+        (_SCRIPT_START + _SIGNAL_AS_THE_LOCK_IS_TAKEN).format(paths=[here, *sys.path])
+    )
+    try:
+        done = subprocess.run(
+            [sys.executable, str(script)], capture_output=True, text=True, timeout=60
+        )
+    except subprocess.TimeoutExpired:
+        pytest.fail("the runs still wait for the joiner's lock")
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == str(["interrupted"] * 3)

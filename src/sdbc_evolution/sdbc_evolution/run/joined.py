@@ -19,7 +19,11 @@ a :class:`JoinedEvaluator`, and what the runs ask to evaluate is joined into one
   batches, one at a time under the interpreter's lock.
 - **Stopping:** a KeyboardInterrupt in the serving thread reaches every run at
   its next evaluation (its evaluator raises KeyboardInterrupt), so each stops as
-  it would alone, its checkpoint as atomic as ever.
+  it would alone, its checkpoint as atomic as ever. In the main thread, Ctrl-C
+  and SIGTERM stop a batch at once, as they stop a run alone; anywhere else the
+  serving thread holds them until it has let go of the joiner's lock
+  (:class:`_Signals`), since an exception raised just after a lock is taken
+  leaves it taken and every run waiting on it waits forever.
 - **Time:** each run's clock counts the batches it waited for whole, the other
   runs' trials included; a study notes the runs joined (``study_run.json``) and
   its digest gives each run its share.
@@ -28,14 +32,17 @@ a :class:`JoinedEvaluator`, and what the runs ask to evaluate is joined into one
 from __future__ import annotations
 
 import copy
+import signal
 import threading
 from collections.abc import Callable, Sequence
-from typing import Generic, TypeVar
+from types import FrameType, TracebackType
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
 from sdbc_evolution.characterise.evaluation import Evaluation
 from sdbc_evolution.run.evaluators import Evaluator, TaskSpec, check_values
+from sdbc_evolution.run.stopping import STOP_SIGNALS
 
 T = TypeVar("T")
 
@@ -43,7 +50,57 @@ JOINED_TRIALS = 2000
 """Trials per batch that a study joins runs up to by default: a robot-step costs
 about the same in larger batches (``docs/speed.md``)."""
 
+HELD_SIGNAL_POLL_SECONDS = 0.1
+"""How soon the serving thread, waiting for the runs' requests, acts on a stop
+signal it holds."""
+
 Request = tuple[np.ndarray, np.ndarray]
+
+
+class _Signals:
+    """The stop signals while runs are joined in the main thread: inside a batch
+    the handler they had acts at once (raising KeyboardInterrupt, the engine
+    stops); anywhere else the first one is held until :meth:`act`, called where
+    no lock is held. Outside the main thread nothing changes: signals never
+    land there."""
+
+    def __init__(self) -> None:
+        self.held: int | None = None
+        self.in_batch = False
+        self._previous: dict[int, Callable[[int, FrameType | None], Any]] = {}
+
+    def __enter__(self) -> _Signals:
+        if threading.current_thread() is threading.main_thread():
+            for sig in STOP_SIGNALS:
+                handler = signal.getsignal(sig)
+                if callable(handler):  # an ignored signal stays ignored
+                    self._previous[sig] = handler
+                    signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.in_batch:
+            self._previous[signum](signum, frame)
+        elif self.held is None:
+            self.held = signum
+
+    def act(self) -> None:
+        """Hands a held signal to the handler it had (which usually raises)."""
+        if self.held is not None:
+            signum, self.held = self.held, None
+            self._previous[signum](signum, None)
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        for sig, handler in self._previous.items():
+            # A handler that acted may have put another in place (ignoring
+            # further signals, say): that one stays.
+            if signal.getsignal(sig) == self._handle:
+                signal.signal(sig, handler)
 
 
 class _Joiner:
@@ -85,23 +142,37 @@ class _Joiner:
             raise answer
         return answer
 
-    def serve(self) -> None:
-        """Answers batches until every member has left (in the serving thread)."""
+    def serve(self, signals: _Signals) -> None:
+        """Answers batches until every member has left (in the serving thread),
+        acting on a held stop signal between them."""
         while True:
+            signals.act()
             with self._changed:
-                while self._members and len(self._asked) < len(self._members):
-                    self._changed.wait()
+                while (
+                    self._members
+                    and len(self._asked) < len(self._members)
+                    and signals.held is None
+                ):
+                    self._changed.wait(HELD_SIGNAL_POLL_SECONDS)
                 if not self._members:
                     return
+                if signals.held is not None:
+                    continue  # acted on once the lock is let go
                 asked, self._asked = self._asked, {}
-            self._answer(asked)
+            self._answer(asked, signals)
 
-    def _answer(self, asked: dict[JoinedEvaluator, list[Request]]) -> None:
+    def _answer(
+        self, asked: dict[JoinedEvaluator, list[Request]], signals: _Signals
+    ) -> None:
         answers: dict[JoinedEvaluator, list[Evaluation] | BaseException] = {}
         try:
-            evaluations = self.evaluator.unchecked_together(
-                [request for requests in asked.values() for request in requests]
-            )
+            signals.in_batch = True
+            try:
+                evaluations = self.evaluator.unchecked_together(
+                    [request for requests in asked.values() for request in requests]
+                )
+            finally:
+                signals.in_batch = False
         except Exception as error:
             # Every run of the batch met it: each raises its own copy.
             answers = {member: copy.copy(error) for member in asked}
@@ -221,19 +292,27 @@ def run_joined(
             )
     joiner = _Joiner(evaluator)
     started = [_Job(joiner, spec, work) for spec, work in jobs]
-    try:
-        for job in started:
-            job.thread.start()
-        joiner.serve()
-    except KeyboardInterrupt:
-        joiner.stop()
-    except BaseException:
-        joiner.stop()
-        raise
-    finally:
-        for job in started:
-            if job.thread.ident is not None:
-                job.thread.join()
+    with _Signals() as signals:
+        stopped = False
+        try:
+            for job in started:
+                job.thread.start()
+            joiner.serve(signals)
+        except KeyboardInterrupt:
+            joiner.stop()
+            stopped = True
+        except BaseException:
+            joiner.stop()
+            raise
+        finally:
+            for job in started:
+                if job.thread.ident is not None:
+                    job.thread.join()
+        if not stopped:
+            # A signal held as the last runs ended stops the caller, as it
+            # would stop a run alone at its end; one held while they stopped
+            # asked for what was under way.
+            signals.act()
     for job in started:
         if job.error is not None:
             raise job.error
