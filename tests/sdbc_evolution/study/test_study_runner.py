@@ -351,13 +351,17 @@ def test_ctrl_c_when_the_running_runs_had_finished_still_stops_the_session(
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("stop", ["ctrl-c", "parent-only", "sigterm"])
+@pytest.mark.parametrize(
+    ("stop", "workers"),
+    [("ctrl-c", "2"), ("parent-only", "2"), ("sigterm", "2"), ("ctrl-c", "1")],
+)
 def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
-    tmp_path: Path, stop: str
+    tmp_path: Path, stop: str, workers: str
 ) -> None:
     """Ctrl-C in a terminal (the whole process group), SIGINT to the study alone
     where it was started with SIGINT ignored (a shell's background job), and a
-    batch scheduler's SIGTERM all stop the study, and the same command resumes."""
+    batch scheduler's SIGTERM all stop the study, and the same command resumes;
+    with one worker, Ctrl-C stops the runs joined in the study's own process."""
     preset = tmp_path / "longer.yaml"
     preset.write_text(
         yaml.safe_dump(
@@ -371,7 +375,7 @@ def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
     root = tmp_path / "study"
     command = [
         sys.executable, "-m", "sdbc_evolution.study", "run", "--preset", str(preset),
-        "--out", str(root), "--workers", "2", "--quiet",
+        "--out", str(root), "--workers", workers, "--quiet",
     ]  # fmt: skip
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     process = subprocess.Popen(
@@ -400,7 +404,7 @@ def test_ctrl_c_stops_runs_side_by_side_and_the_same_command_resumes(
     assert process.returncode == 130, stderr
     assert "interrupted; resume with the same command" in stderr
     states = [run_status(s).state for s in plan]
-    assert RunProgress.FINISHED not in states[2:]  # the later runs never started
+    assert RunProgress.FINISHED not in states[2:]  # the later runs never ended
     assert subprocess.run(command, env=env, timeout=600).returncode == 0
     assert all(run_status(s).state is RunProgress.FINISHED for s in plan)
     reference = tmp_path / "reference"
