@@ -283,6 +283,9 @@ def run_joined(
         ValueError: A job's task spec does not evaluate like the evaluator's.
         BaseException: The first exception a job's work raised, once every job
             has ended.
+        KeyboardInterrupt: A stop signal that came between batches as the last
+            jobs ended, once they have (it stops the caller as it would stop a
+            run alone at its end).
     """
     for spec, _ in jobs:
         if not spec.evaluates_like(evaluator.spec):
