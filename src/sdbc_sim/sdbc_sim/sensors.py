@@ -338,8 +338,12 @@ def ray_distance(
         wy = ay - oy
         denom = ux * ey - uy * ex
         t = (wx * ey - wy * ex) / denom
+        if not (t >= 0.0 and t <= length and t < nearest):
+            continue
+        # The second division only for a hit nearer than any so far: the
+        # conditions are those of the array form, in another order.
         s = (wx * uy - wy * ux) / denom
-        if t >= 0.0 and t <= length and s >= 0.0 and s <= 1.0 and t < nearest:
+        if s >= 0.0 and s <= 1.0:
             nearest = t
     return nearest
 
