@@ -31,18 +31,19 @@ a :class:`JoinedEvaluator`, and what the runs ask to evaluate is joined into one
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import signal
 import threading
-from collections.abc import Callable, Sequence
-from types import FrameType, TracebackType
+from collections.abc import Callable, Iterator, Sequence
+from types import FrameType
 from typing import Any, Generic, TypeVar
 
 import numpy as np
 
 from sdbc_evolution.characterise.evaluation import Evaluation
 from sdbc_evolution.run.evaluators import Evaluator, TaskSpec, check_values
-from sdbc_evolution.run.stopping import STOP_SIGNALS
+from sdbc_evolution.run.stopping import STOP_SIGNALS, stop_signals_to
 
 T = TypeVar("T")
 
@@ -58,29 +59,19 @@ Request = tuple[np.ndarray, np.ndarray]
 
 
 class _Signals:
-    """The stop signals while runs are joined in the main thread: inside a batch
-    the handler they had acts at once (raising KeyboardInterrupt, the engine
-    stops); anywhere else the first one is held until :meth:`act`, called where
-    no lock is held. Outside the main thread nothing changes: signals never
-    land there."""
+    """The stop signals while runs are joined in the main thread
+    (:func:`_holding_signals`): inside a batch the handler they had acts at
+    once (raising KeyboardInterrupt, the engine stops); anywhere else the first
+    one is held until :meth:`act`, called where no lock is held."""
 
     def __init__(self) -> None:
         self.held: int | None = None
         self.in_batch = False
-        self._previous: dict[int, Callable[[int, FrameType | None], Any]] = {}
+        self.previous: dict[int, Any] = {}
 
-    def __enter__(self) -> _Signals:
-        if threading.current_thread() is threading.main_thread():
-            for sig in STOP_SIGNALS:
-                handler = signal.getsignal(sig)
-                if callable(handler):  # an ignored signal stays ignored
-                    self._previous[sig] = handler
-                    signal.signal(sig, self._handle)
-        return self
-
-    def _handle(self, signum: int, frame: FrameType | None) -> None:
+    def handle(self, signum: int, frame: FrameType | None) -> None:
         if self.in_batch:
-            self._previous[signum](signum, frame)
+            self.previous[signum](signum, frame)
         elif self.held is None:
             self.held = signum
 
@@ -88,19 +79,19 @@ class _Signals:
         """Hands a held signal to the handler it had (which usually raises)."""
         if self.held is not None:
             signum, self.held = self.held, None
-            self._previous[signum](signum, None)
+            self.previous[signum](signum, None)
 
-    def __exit__(
-        self,
-        kind: type[BaseException] | None,
-        error: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        for sig, handler in self._previous.items():
-            # A handler that acted may have put another in place (ignoring
-            # further signals, say): that one stays.
-            if signal.getsignal(sig) == self._handle:
-                signal.signal(sig, handler)
+
+@contextlib.contextmanager
+def _holding_signals() -> Iterator[_Signals]:
+    """:class:`_Signals` for the stop signals that have a handler: an ignored
+    one stays ignored. Outside the main thread nothing changes: signals never
+    land there."""
+    signals = _Signals()
+    handled = [sig for sig in STOP_SIGNALS if callable(signal.getsignal(sig))]
+    with stop_signals_to(signals.handle, handled) as previous:
+        signals.previous = previous
+        yield signals
 
 
 class _Joiner:
@@ -295,7 +286,7 @@ def run_joined(
             )
     joiner = _Joiner(evaluator)
     started = [_Job(joiner, spec, work) for spec, work in jobs]
-    with _Signals() as signals:
+    with _holding_signals() as signals:
         stopped = False
         try:
             for job in started:

@@ -48,7 +48,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -79,7 +79,7 @@ from sdbc_evolution.run.joined import JOINED_TRIALS, run_joined
 from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
-from sdbc_evolution.run.stopping import STOP_SIGNALS
+from sdbc_evolution.run.stopping import STOP_SIGNALS, stop_signals_to
 from sdbc_evolution.study.champions import reevaluate_champions
 from sdbc_evolution.study.plan import (
     LOG_FILE,
@@ -826,7 +826,11 @@ def _run_processes(
     children = _Children(execution.concurrent_runs, _note(execution, 1), progress)
     waiting = list(groups)
     forwarded = False
-    with _noting_stop_signals() as signalled:
+    # Stop signals set a flag rather than raise KeyboardInterrupt: raised inside
+    # a read of the children's queue, it could lose a child's report or cut it
+    # in half.
+    signalled = threading.Event()
+    with stop_signals_to(lambda signum, frame: signalled.set()):
         try:
             while waiting or children.running:
                 try:
@@ -858,26 +862,6 @@ def _run_processes(
                 process.join()
             children.messages.close()
     return list(children.results.values())
-
-
-@contextlib.contextmanager
-def _noting_stop_signals() -> Iterator[threading.Event]:
-    """Within the block, SIGINT and SIGTERM set the event rather than raise
-    KeyboardInterrupt: raised inside a read of the children's queue, it could
-    lose a child's report or cut it in half. (Outside the main thread, where
-    no handler can be set, nothing changes.)"""
-    signalled = threading.Event()
-    if threading.current_thread() is not threading.main_thread():
-        yield signalled
-        return
-    previous = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
-    for sig in STOP_SIGNALS:
-        signal.signal(sig, lambda signum, frame: signalled.set())
-    try:
-        yield signalled
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 def _log_session(root: Path, entry: dict[str, Any]) -> None:
