@@ -1,15 +1,25 @@
-"""Stop signals go where a block says, and back after it."""
+"""Stop signals go where a block says, and back after it; a stop whose
+KeyboardInterrupt was lost still stops the command at the end of its batch."""
 
 from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
 import pytest
-from sdbc_evolution.run.stopping import STOP_SIGNALS, stop_signals_to, stoppable
+from evolution_helpers import ToyEvaluator
+from sdbc_evolution.run.joined import run_joined
+from sdbc_evolution.run.stopping import (
+    STOP_SIGNALS,
+    raise_if_stopped,
+    stop_signals_to,
+    stoppable,
+)
 
 
 @pytest.fixture(autouse=True)
@@ -73,3 +83,65 @@ def test_outside_the_main_thread_nothing_changes() -> None:
     thread.start()
     thread.join()
     assert got == [{}, before]
+
+
+class _SignalsFromItsFinalizer:
+    """Sends SIGINT from its finalizer, where the handler then runs and Python
+    drops the KeyboardInterrupt it raises, as in pymunk's callbacks that free
+    chipmunk's objects."""
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+        sum(range(10))  # Python code: the handler runs here at the latest
+
+
+@pytest.fixture
+def dropped(monkeypatch: pytest.MonkeyPatch) -> list[type[BaseException] | None]:
+    """The exceptions Python drops (``sys.unraisablehook``)."""
+    seen: list[type[BaseException] | None] = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda u: seen.append(u.exc_type))
+    return seen
+
+
+def _batch() -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros((2, 6)), np.arange(4, dtype=np.int64).reshape(2, 2)
+
+
+def test_a_stop_lost_in_a_finalizer_stops_the_next_batch_at_its_end(
+    dropped: list[type[BaseException] | None],
+) -> None:
+    evaluator = ToyEvaluator()
+    with stoppable():
+        raise_if_stopped()  # nothing came yet
+        _SignalsFromItsFinalizer()
+        assert dropped == [KeyboardInterrupt]
+        with pytest.raises(KeyboardInterrupt):
+            evaluator.evaluate(*_batch())
+        assert evaluator.calls == 1  # stopped after the batch, not before
+    evaluator.evaluate(*_batch())  # the next command is not stopped
+
+
+class _LosesAStopInItsFirstBatch(ToyEvaluator):
+    def _run(self, genomes, seeds, bounds):  # type: ignore[no-untyped-def]
+        if self.calls == 0:
+            _SignalsFromItsFinalizer()
+        return super()._run(genomes, seeds, bounds)
+
+
+def test_a_stop_lost_in_a_joined_batch_stops_every_run(
+    dropped: list[type[BaseException] | None],
+) -> None:
+    def work(evaluator: ToyEvaluator) -> str:
+        for _ in range(20):
+            try:
+                evaluator.evaluate(*_batch())
+            except KeyboardInterrupt:
+                return "interrupted"
+        return "finished"
+
+    evaluator = _LosesAStopInItsFirstBatch()
+    with stoppable():
+        outcome = run_joined(evaluator, [(ToyEvaluator.spec, work)] * 3)
+    assert dropped == [KeyboardInterrupt]
+    assert evaluator.calls == 1
+    assert outcome == ["interrupted"] * 3

@@ -50,6 +50,7 @@ from sdbc_evolution.characterise.evaluation import SDBC, TASK, Evaluation
 from sdbc_evolution.characterise.registry import ALWAYS, CharacterisationSpec
 from sdbc_evolution.run.config import PhysicsModel
 from sdbc_evolution.run.processes import available_cores, worker_pool
+from sdbc_evolution.run.stopping import raise_if_stopped
 
 if TYPE_CHECKING:
     from sdbc_sim.engine import EngineSettings
@@ -398,6 +399,8 @@ class Evaluator(ABC):
 
         Raises:
             ValuesOutOfRange: A value breaks the contract (:func:`check_values`).
+            KeyboardInterrupt: A stop signal came, in the batch or before it
+                (:func:`~sdbc_evolution.run.stopping.raise_if_stopped`).
         """
         evaluation = self._unchecked(*_check_batch(genomes, seeds))
         check_values(evaluation, self.spec)
@@ -406,7 +409,10 @@ class Evaluator(ABC):
     def _unchecked(self, genomes: np.ndarray, seeds: np.ndarray) -> Evaluation:
         """:meth:`evaluate` without the values' check, on a checked batch."""
         bounds = chunk_bounds(genomes.shape[0], self.workers)
-        return Evaluation.concatenate(self._run(genomes, seeds, bounds))
+        evaluations = self._run(genomes, seeds, bounds)
+        # A stop signal in the batch whose KeyboardInterrupt was lost.
+        raise_if_stopped()
+        return Evaluation.concatenate(evaluations)
 
     def evaluate_together(
         self, requests: Sequence[tuple[np.ndarray, np.ndarray]]

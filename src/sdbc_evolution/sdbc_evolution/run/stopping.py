@@ -6,6 +6,14 @@ that the same command resumes.
 Ctrl-C also has to work where the command was started with SIGINT ignored, as a
 non-interactive shell starts its background jobs (``cmd &`` in a script):
 Python then keeps ignoring it unless told otherwise.
+
+A handler's ``KeyboardInterrupt`` can be lost: Python runs a signal's handler at
+its next check, wherever that falls, and drops an exception raised in a
+finalizer (pymunk frees chipmunk's spaces, bodies and shapes in callbacks that
+run Python code, many of them as a batch of trials ends). So the handler also
+notes the signal, and every evaluator checks the note after each batch
+(:func:`raise_if_stopped`): a command stops at the end of the batch under way
+at the latest.
 """
 
 from __future__ import annotations
@@ -24,8 +32,23 @@ Handler = Callable[[int, FrameType | None], Any]
 """A signal handler, as :func:`signal.signal` takes one."""
 
 
-def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+_stop_signalled = False
+"""A stop signal came: in this :func:`stoppable` block, or in a process that
+stops on its first (:func:`interrupt`)."""
+
+
+def interrupt(signum: int, frame: FrameType | None) -> None:
+    """A stop signal's handler: notes the signal and raises KeyboardInterrupt."""
+    global _stop_signalled
+    _stop_signalled = True
     raise KeyboardInterrupt
+
+
+def raise_if_stopped() -> None:
+    """Raises KeyboardInterrupt if a stop signal came (:func:`interrupt`), in
+    case the one its handler raised was lost (module docstring)."""
+    if _stop_signalled:
+        raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
@@ -52,8 +75,16 @@ def stop_signals_to(
                 signal.signal(sig, old)
 
 
-def stoppable() -> contextlib.AbstractContextManager[dict[int, Any]]:
+@contextlib.contextmanager
+def stoppable() -> Iterator[None]:
     """Within the block, SIGINT and SIGTERM raise ``KeyboardInterrupt`` (in the
-    main thread), even where they were ignored; the previous handlers come back
-    after it."""
-    return stop_signals_to(_raise_interrupt)
+    main thread), even where they were ignored, and are noted for
+    :func:`raise_if_stopped`; the previous handlers come back after it, and
+    the note goes."""
+    global _stop_signalled
+    _stop_signalled = False
+    try:
+        with stop_signals_to(interrupt):
+            yield
+    finally:
+        _stop_signalled = False

@@ -79,7 +79,7 @@ from sdbc_evolution.run.joined import JOINED_TRIALS, run_joined
 from sdbc_evolution.run.lock import RunBusy
 from sdbc_evolution.run.processes import limit_threads, message_queue, start_process
 from sdbc_evolution.run.results import atomic_write_bytes
-from sdbc_evolution.run.stopping import STOP_SIGNALS, stop_signals_to
+from sdbc_evolution.run.stopping import STOP_SIGNALS, interrupt, stop_signals_to
 from sdbc_evolution.study.champions import reevaluate_champions
 from sdbc_evolution.study.plan import (
     LOG_FILE,
@@ -719,7 +719,7 @@ def _interrupt_once(signum: int, frame: Any) -> None:
     # The terminal, the parent and a scheduler may all signal: stop once, then
     # let the run write its outputs in peace.
     _ignore_stop_signals()
-    raise KeyboardInterrupt
+    interrupt(signum, frame)
 
 
 def _child(group: list[RunSpec], note: dict[str, Any], messages: Any) -> None:
