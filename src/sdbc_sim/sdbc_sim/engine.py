@@ -439,32 +439,41 @@ def _drive_rows(
     that library. A body that does not turn keeps the cosine and sine its
     heading has (in resource sharing most bodies at most steps: robots out of
     energy or stopped), so ``cos_h`` and ``sin_h`` must hold those of ``angle``
-    on entry, as the engine keeps them."""
-    n = angle.shape[1]
-    for t in range(angle.shape[0]):
+    on entry, as the engine keeps them.
+
+    It runs in three passes over the bodies: the headings, then their cosines
+    and sines, then the drive rows. The middle pass is the C library's call
+    and little else, so few values stay live across it; as one pass the loop
+    took about a tenth longer per body (``docs/speed-history.md``)."""
+    n_trials, n = angle.shape
+    heading = np.empty(n_trials * n)
+    velocity = np.empty(n_trials * n)
+    turned = np.empty(n_trials * n, dtype=np.bool_)
+    for t in range(n_trials):
         run = running[t]
         for i in range(n):
             m = 1.0 if enabled[t, i] and run else 0.0
             tm = turn[t, i] * m
             turn_rate[t, i] = tm / dt
             a = angle[t, i]
-            h = a + tm
-            if tm == 0.0 and abs(a) > 0.0:
-                # h is a to the bit (a nonzero plus a zero of either sign),
-                # whose cosine and sine the arrays hold already.
-                c = cos_h[t, i]
-                s = sin_h[t, i]
-            else:
-                c = math.cos(h)
-                s = math.sin(h)
-                cos_h[t, i] = c
-                sin_h[t, i] = s
-            v = speed[t, i] * m
             row = t * n + i
-            drive[row, col_angle] = h
-            drive[row, col_angular_velocity] = 0.0
-            drive[row, col_x] = v * c
-            drive[row, col_y] = v * s
+            heading[row] = a + tm
+            # Not turned: h is a to the bit (a nonzero plus a zero of either
+            # sign), whose cosine and sine the arrays hold already.
+            turned[row] = not (tm == 0.0 and abs(a) > 0.0)
+            velocity[row] = speed[t, i] * m
+    cos_rows = cos_h.reshape(-1)
+    sin_rows = sin_h.reshape(-1)
+    for row in range(n_trials * n):
+        if turned[row]:
+            h = heading[row]
+            cos_rows[row] = math.cos(h)
+            sin_rows[row] = math.sin(h)
+    for row in range(n_trials * n):
+        drive[row, col_angle] = heading[row]
+        drive[row, col_angular_velocity] = 0.0
+        drive[row, col_x] = velocity[row] * cos_rows[row]
+        drive[row, col_y] = velocity[row] * sin_rows[row]
 
 
 @dataclass
