@@ -444,7 +444,7 @@ def _drive_rows(
     It runs in three passes over the bodies: the headings, then their cosines
     and sines, then the drive rows. The middle pass is the C library's call
     and little else, so few values stay live across it; as one pass the loop
-    took about a tenth longer per body (``docs/speed-history.md``)."""
+    took 13-19 % longer per body (``docs/speed-history.md``)."""
     n_trials, n = angle.shape
     heading = np.empty(n_trials * n)
     velocity = np.empty(n_trials * n)
