@@ -505,28 +505,27 @@ def _predator_readings(
 ) -> None:  # pragma: no cover - compiled; tested through PredatorPrey.sensors
     """The predators' inputs from :func:`_seen_by_predators`' distances and the
     bearings / pi: the other predators' edge readings and bearings, nearest
-    first (a bubble sort of compare-exchanges that swaps only a strictly nearer
-    one, so ties keep index order), then the prey's."""
+    first, then the prey's. The order is a bubble sort of compare-exchanges
+    that swaps only a strictly nearer one, so ties keep index order; it sorts
+    the other predators' indices by their distances, and each reading is
+    computed once, where it is written (as three arrays sorted alongside, the
+    loop took a fifth longer)."""
     m = dist.shape[2] - 1
-    d = np.empty(m)
-    r = np.empty(m)
-    a = np.empty(m)
+    order = np.empty(m, dtype=np.intp)
     for t in range(dist.shape[0]):
         for i in range(dist.shape[1]):
+            d = dist[t, i]
             for k in range(m):
-                d[k] = dist[t, i, k]
-                r[k] = max(d[k] - predator_gap, 0.0) * scale - 1.0
-                a[k] = angle[t, i, k]
+                order[k] = k
             for end in range(m - 1, 0, -1):
                 for j in range(end):
-                    if d[j + 1] < d[j]:
-                        d[j], d[j + 1] = d[j + 1], d[j]
-                        r[j], r[j + 1] = r[j + 1], r[j]
-                        a[j], a[j + 1] = a[j + 1], a[j]
+                    if d[order[j + 1]] < d[order[j]]:
+                        order[j], order[j + 1] = order[j + 1], order[j]
             for k in range(m):
-                out[t, i, 2 * k] = r[k]
-                out[t, i, 2 * k + 1] = a[k]
-            out[t, i, 2 * m] = max(dist[t, i, m] - prey_gap, 0.0) * scale - 1.0
+                other = order[k]
+                out[t, i, 2 * k] = max(d[other] - predator_gap, 0.0) * scale - 1.0
+                out[t, i, 2 * k + 1] = angle[t, i, other]
+            out[t, i, 2 * m] = max(d[m] - prey_gap, 0.0) * scale - 1.0
             out[t, i, 2 * m + 1] = angle[t, i, m]
 
 
