@@ -4,10 +4,11 @@ the step, alone on one step's inputs repeated, and alone on many steps' inputs.
 For a task (``--task``, default gate escape), one batch of ``--genomes`` x
 ``--trials`` random genomes runs through :func:`sdbc_sim.run_batch` with the SDBC
 extractor, every compiled loop of :mod:`sdbc_sim.compiled` wrapped so that each
-call's time is charged to its loop. For the loops named by ``--loop`` (default:
-the ``--top`` costliest in the step), the arguments of ``--record`` consecutive
-calls from call ``--start`` on are copied as they were at the call, and the
-time each of those calls took in the step is kept. Then each loop runs alone on
+call's time is charged to its loop, and the time of calls ``--start`` to
+``--start + --record - 1`` of each loop is kept. The same batch then runs again
+(it is deterministic, so the calls are the same), and for the loops named by
+``--loop`` (default: the ``--top`` costliest in the step) the arguments of
+those calls are copied as they were at the call. Then each loop runs alone on
 copies of them:
 
 - repeated: the first recorded call's inputs, again and again;
@@ -17,6 +18,13 @@ Inputs are copied afresh before every timed call (a loop may write into an array
 it also reads), so both alone forms start from data just written to memory.
 Medians are printed, in microseconds per call, with the ratios of the step's
 time to each.
+
+Why two runs: the copies kept while recording grow the heap, so that the
+arrays the engine allocates for a loop's outputs in the calls that follow land
+on pages the process has not touched yet, and the loop pays their page faults.
+Predator-prey's ``_seen_by_predators`` took 242 us per call in the step with
+every loop's inputs kept, 49 with nothing kept. The step's times come from the
+run that keeps nothing.
 
 Why: a loop timed alone on one input repeated can run at half its cost in the
 step, and that gap was read as the cache's (a step's arrays do not stay in the
@@ -71,11 +79,10 @@ def _copy(args: tuple[Any, ...]) -> tuple[Any, ...]:
 
 @dataclass
 class LoopCalls:
-    """One loop's calls in the batch, and the ones recorded."""
+    """One loop's calls in the batch: their time, and each recorded call's."""
 
     seconds: float = 0.0
     calls: int = 0
-    recorded: list[tuple[Any, ...]] = field(default_factory=list)
     in_step: list[float] = field(default_factory=list)
 
 
@@ -91,35 +98,52 @@ class Replay:
 
 
 @contextmanager
-def recording(
-    names: set[str] | None, start: int, count: int
-) -> Iterator[dict[str, LoopCalls]]:
+def timing(start: int, count: int) -> Iterator[dict[str, LoopCalls]]:
     """Wraps every compiled loop while the block runs: per loop name, the time
-    of every call; for the loops in ``names`` (all when None), the inputs and
-    time of calls ``start`` to ``start + count - 1`` (0-based)."""
+    of every call, and of calls ``start`` to ``start + count - 1`` (0-based)
+    each (``in_step``)."""
     log: dict[str, LoopCalls] = {}
     call = compiled._Loop.__call__
 
     def timed(loop: compiled._Loop, *args: Any) -> Any:
-        name = loop_name(loop)
-        entry = log.setdefault(name, LoopCalls())
-        keep = (names is None or name in names) and (
-            start <= entry.calls < start + count
-        )
-        saved = _copy(args) if keep else ()
+        entry = log.setdefault(loop_name(loop), LoopCalls())
         t0 = time.perf_counter()
         result = call(loop, *args)
         took = time.perf_counter() - t0
+        if start <= entry.calls < start + count:
+            entry.in_step.append(took)
         entry.seconds += took
         entry.calls += 1
-        if keep:
-            entry.recorded.append(saved)
-            entry.in_step.append(took)
         return result
 
     compiled._Loop.__call__ = timed  # type: ignore[method-assign]
     try:
         yield log
+    finally:
+        compiled._Loop.__call__ = call  # type: ignore[method-assign]
+
+
+@contextmanager
+def recording(
+    names: set[str], start: int, count: int
+) -> Iterator[dict[str, list[tuple[Any, ...]]]]:
+    """Wraps every compiled loop while the block runs: for the loops in
+    ``names``, copies of the arguments of calls ``start`` to ``start + count -
+    1`` (0-based), as they were at the call."""
+    kept: dict[str, list[tuple[Any, ...]]] = {}
+    calls: dict[str, int] = {}
+    call = compiled._Loop.__call__
+
+    def copying(loop: compiled._Loop, *args: Any) -> Any:
+        name = loop_name(loop)
+        k = calls[name] = calls.get(name, 0) + 1
+        if name in names and start < k <= start + count:
+            kept.setdefault(name, []).append(_copy(args))
+        return call(loop, *args)
+
+    compiled._Loop.__call__ = copying  # type: ignore[method-assign]
+    try:
+        yield kept
     finally:
         compiled._Loop.__call__ = call  # type: ignore[method-assign]
 
@@ -169,31 +193,33 @@ def replay(
     g, s = random_batch(task, genomes, trials, np.random.default_rng(seed))
     # A first small batch loads the loops, so no call below pays for that.
     run_batch(task, g[:1], s[:1, :1], settings=settings)
-    names = set(loops) if loops else None
-    with recording(names, start, record) as log:
+    with timing(start, record) as log:
         run_batch(task, g, s, [SdbcExtractor(check_values=False)], settings=settings)
-    chosen = [n for n in log if log[n].recorded]
+    timed = [n for n in log if log[n].in_step]
     if loops:
-        missing = sorted(set(loops) - set(chosen))
+        missing = sorted(set(loops) - set(timed))
         if missing:
             raise ValueError(
                 f"{task_name}: no recorded calls of {missing} (they run fewer than "
                 f"--start {start} + 1 times, or are not this task's loops)"
             )
+        chosen = list(loops)
     else:
-        chosen = sorted(chosen, key=lambda n: -log[n].seconds)[:top]
+        chosen = sorted(timed, key=lambda n: -log[n].seconds)[:top]
+    with recording(set(chosen), start, record) as kept:
+        run_batch(task, g, s, [SdbcExtractor(check_values=False)], settings=settings)
     out = []
     for name in chosen:
         entry = log[name]
         loop = _loop_named(name)
-        n = len(entry.recorded)
+        inputs = kept[name]
         out.append(
             Replay(
                 name=name,
                 calls=entry.calls,
                 in_step=statistics.median(entry.in_step),
-                repeated=_alone(loop, entry.recorded[:1], n * rounds),
-                varied=_alone(loop, entry.recorded, n * rounds),
+                repeated=_alone(loop, inputs[:1], len(inputs) * rounds),
+                varied=_alone(loop, inputs, len(inputs) * rounds),
             )
         )
     return sorted(out, key=lambda r: -log[r.name].seconds)
