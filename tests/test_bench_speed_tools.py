@@ -20,7 +20,7 @@ import common  # noqa: E402
 import engine as engine_bench  # noqa: E402
 import identity  # noqa: E402
 import replay  # noqa: E402
-from sdbc_sim.engine import BatchSimulation, EngineSettings  # noqa: E402
+from sdbc_sim.engine import BatchSimulation, EngineSettings, run_batch  # noqa: E402
 from sdbc_sim.kinematic import KinematicTrials  # noqa: E402
 from sdbc_sim.physics import PhysicsSettings, TrialSpaces  # noqa: E402
 from sdbc_sim.tasks import make_task  # noqa: E402
@@ -106,6 +106,40 @@ def test_replay_times_recorded_calls_in_the_step_and_alone() -> None:
             "gate_escape", 2, 2, 12, 0, settings, ["engine._nope"], start=3, record=4
         )
     assert compiled._Loop.__call__ is call
+
+
+def test_replay_times_in_one_run_and_copies_in_another() -> None:
+    """The timed run keeps no inputs (their copies grew the heap, and the step's
+    loops paid page faults); the recording run copies the named loop's calls
+    ``start`` to ``start + count - 1`` only, as they were at the call."""
+    task = make_task("gate_escape", max_steps=12)
+    g, s = common.random_batch(task, 2, 2, np.random.default_rng(0))
+    settings = common.engine_settings(["model=kinematic"])
+    run_batch(task, g[:1], s[:1, :1], settings=settings)
+    with replay.timing(3, 4) as log:
+        run_batch(task, g, s, settings=settings)
+    drive = log["engine._drive_rows"]
+    assert drive.calls == 12 and len(drive.in_step) == 4
+    assert not hasattr(drive, "recorded")
+    seen: list[np.ndarray] = []
+    call = compiled._Loop.__call__
+
+    def spy(loop: compiled._Loop, *args: object) -> object:
+        if replay.loop_name(loop) == "engine._drive_rows":
+            seen.append(np.array(args[0], copy=True))
+        return call(loop, *args)
+
+    compiled._Loop.__call__ = spy  # type: ignore[method-assign]
+    try:
+        with replay.recording({"engine._drive_rows"}, 3, 4) as kept:
+            run_batch(task, g, s, settings=settings)
+    finally:
+        compiled._Loop.__call__ = call  # type: ignore[method-assign]
+    assert list(kept) == ["engine._drive_rows"]
+    copies = kept["engine._drive_rows"]
+    assert len(copies) == 4
+    for k, args in enumerate(copies):
+        assert np.array_equal(args[0], seen[3 + k])
 
 
 def test_replay_copies_keep_a_views_strides() -> None:
