@@ -238,3 +238,27 @@ def test_ignores_sigint_reads_the_process_disposition():
         finally:
             child.kill()
             child.wait()
+
+
+def test_a_node_program_starts_with_sigint_at_its_default_action(tmp_path):
+    """Started by the launcher, a program hears SIGINT with its default action
+    (the process ends at once) until it installs handlers of its own, even when
+    its launcher ignored SIGINT. Python's KeyboardInterrupt, raised inside an
+    import, could leave the interpreter's import lock held: a controller stopped
+    at a graph's start then hung on its way out until it was SIGKILLed."""
+    (tmp_path / "sigint_probe.py").write_text(
+        "import signal\n"
+        "print(signal.getsignal(signal.SIGINT) is signal.SIG_DFL, flush=True)\n"
+    )
+    env = _launcher_env(tmp_path)
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env["PYTHONPATH"]])
+    done = subprocess.run(
+        [sys.executable, "-m", OWNED, str(os.getpid()), "1", "sigint_probe"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=_ignore_sigint,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "True\n"

@@ -64,20 +64,20 @@ def main(argv: Sequence[str] | None = None) -> None:
     # shell's `&` does: a stop in its first seconds would be lost, and the node
     # killed after the grace time, its bag unclosed and its DDS files left. First
     # thing, before any import: the launcher holds a stop back until this is done
-    # (graph/processes.py).
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    # (graph/processes.py). Its default action, not Python's KeyboardInterrupt:
+    # until the node program installs its own handlers (before it makes any
+    # node), a stop ends the process at once, with nothing started to clean up.
+    # A KeyboardInterrupt raised inside an import can leave the interpreter's
+    # import lock held, and the process then hung on its way out until the
+    # launcher killed it (a stop at a graph's start, about 1 in 60 under load).
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) < 3:
         sys.exit("usage: python -m sdbc_evolution.graph.owned OWNER GRACE MODULE ...")
     owner, grace, module, rest = int(args[0]), float(args[1]), args[2], args[3:]
     watch_launcher(owner, grace)
     sys.argv = [module, *rest]
-    try:
-        runpy.run_module(module, run_name="__main__", alter_sys=True)
-    except KeyboardInterrupt:
-        # Stopped before the node program took over its signals (importing):
-        # nothing was started, so a stop like any other, without a traceback.
-        sys.exit(0)
+    runpy.run_module(module, run_name="__main__", alter_sys=True)
 
 
 if __name__ == "__main__":
