@@ -198,6 +198,23 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def _run_from_background_job(
+    argv: list[str], env: dict[str, str]
+) -> subprocess.CompletedProcess[str]:
+    """Runs ``argv`` to its end with SIGINT ignored, as a non-interactive shell's
+    `&` starts it; asserts that it exited with 0."""
+    done = subprocess.run(
+        argv,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=_ignore_sigint,
+    )
+    assert done.returncode == 0, done.stderr
+    return done
+
+
 def test_a_graph_started_from_a_background_job_still_stops_by_sigint(tmp_path):
     """A program a non-interactive shell starts with `&` ignores SIGINT, and so
     would the nodes its launcher starts: a stop in their first moments, before
@@ -206,16 +223,9 @@ def test_a_graph_started_from_a_background_job_still_stops_by_sigint(tmp_path):
     import json
 
     _graph_file(tmp_path)
-    env = _launcher_env(tmp_path)
-    done = subprocess.run(
-        [sys.executable, "-c", STOP_AT_ONCE, str(tmp_path)],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        preexec_fn=_ignore_sigint,
+    done = _run_from_background_job(
+        [sys.executable, "-c", STOP_AT_ONCE, str(tmp_path)], _launcher_env(tmp_path)
     )
-    assert done.returncode == 0, done.stderr
     codes = json.loads(done.stdout)
     assert len(codes) == 5
     assert -signal.SIGKILL not in codes.values(), codes
@@ -252,13 +262,7 @@ def test_a_node_program_starts_with_sigint_at_its_default_action(tmp_path):
     )
     env = _launcher_env(tmp_path)
     env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env["PYTHONPATH"]])
-    done = subprocess.run(
-        [sys.executable, "-m", OWNED, str(os.getpid()), "1", "sigint_probe"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        preexec_fn=_ignore_sigint,
+    done = _run_from_background_job(
+        [sys.executable, "-m", OWNED, str(os.getpid()), "1", "sigint_probe"], env
     )
-    assert done.returncode == 0, done.stderr
     assert done.stdout == "True\n"
