@@ -22,8 +22,8 @@ time to each.
 Why two runs: the copies kept while recording grow the heap, so that the
 arrays the engine allocates for a loop's outputs in the calls that follow land
 on pages the process has not touched yet, and the loop pays their page faults.
-Predator-prey's ``_seen_by_predators`` took 242 us per call in the step with
-every loop's inputs kept, 49 with nothing kept. The step's times come from the
+Predator-prey's ``_seen_by_predators`` took 242-351 us per call in the step with
+every loop's inputs kept, 48-49 with nothing kept. The step's times come from the
 run that keeps nothing.
 
 Why: a loop timed alone on one input repeated can run at half its cost in the
