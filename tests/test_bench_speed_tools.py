@@ -177,29 +177,50 @@ def test_physics_sweep() -> None:
         common.physics_sweep(base, "hash_cell=8,12")
 
 
-def test_mase_verdicts_name_each_task_short_of_its_goal(
+def test_mase_verdicts_read_the_median_ratio_s_interval(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
+    """A task reaches its goal when the whole interval of its median ratio does,
+    is short when the whole interval is, and is at the goal within the noise
+    otherwise; with too few alternations there is no interval to read."""
     mase = common.bench_module("mase")
     series = {
-        ("gate_escape", "mase+sdbc"): mase.Series(cpu=[2.0, 2.0, 2.0]),
-        ("gate_escape", "rigid+sdbc"): mase.Series(cpu=[2.3, 2.6, 2.5]),
-        ("gate_escape", "kinematic+sdbc"): mase.Series(cpu=[7.8, 8.2, 7.9]),
-        ("predator_prey", "mase+sdbc"): mase.Series(cpu=[1.0, 1.0, 1.0]),
-        ("predator_prey", "rigid+sdbc"): mase.Series(cpu=[1.2, 1.3, 1.1]),
-        ("predator_prey", "kinematic+sdbc"): mase.Series(cpu=[4.0, 4.1, 3.9]),
+        ("gate_escape", "mase+sdbc"): mase.Series(cpu=[2.0] * 5),
+        ("gate_escape", "rigid+sdbc"): mase.Series(cpu=[2.5, 2.6, 2.45, 2.42, 2.7]),
+        ("gate_escape", "kinematic+sdbc"): mase.Series(cpu=[7.8, 8.2, 7.9, 7.0, 7.5]),
+        ("predator_prey", "mase+sdbc"): mase.Series(cpu=[1.0] * 5),
+        ("predator_prey", "rigid+sdbc"): mase.Series(cpu=[1.2, 1.3, 1.1, 1.4, 1.3]),
+        ("predator_prey", "kinematic+sdbc"): mase.Series(
+            cpu=[4.0, 4.1, 4.2, 4.05, 4.3]
+        ),
     }
     names, models = ["gate_escape", "predator_prey"], ["rigid", "kinematic"]
     mase.verdicts(series, names, models, None)
     out = capsys.readouterr().out
-    assert "gate_escape      rigid     1.250  reaches the goal 1.2" in out
-    assert "gate_escape      kinematic 3.950  SHORT of the goal 4" in out
-    assert "predator_prey    rigid     1.200  reaches the goal 1.2" in out
-    assert "predator_prey    kinematic 4.000  reaches the goal 4" in out
-    mase.verdicts(series, names, models, None, {"rigid": 1.25, "kinematic": 3.9})
+    assert "gate_escape      rigid     1.250 (1.21-1.35)   reaches the goal 1.2" in out
+    assert "gate_escape      kinematic 3.900 (3.50-4.10)   AT the goal within" in out
+    assert "predator_prey    rigid     1.300 (1.10-1.40)   AT the goal within" in out
+    assert "predator_prey    kinematic 4.100 (4.00-4.30)   reaches the goal 4" in out
+    mase.verdicts(series, names, models, None, {"rigid": 1.5, "kinematic": 3.5})
     out = capsys.readouterr().out
-    assert "gate_escape      kinematic 3.950  reaches the goal 3.9" in out
-    assert "predator_prey    rigid     1.200  SHORT of the goal 1.25" in out
+    assert "gate_escape      rigid     1.250 (1.21-1.35)   SHORT of the goal 1.5" in out
+    assert "gate_escape      kinematic 3.900 (3.50-4.10)   reaches the goal 3.5" in out
+    three = {key: mase.Series(cpu=v.cpu[:3]) for key, v in series.items()}
+    mase.verdicts(three, names, models, None)
+    out = capsys.readouterr().out
+    assert (
+        "predator_prey    kinematic 4.100 (too few alternations) CANNOT TELL, goal 4"
+        in out
+    )
+
+
+def test_the_median_interval_takes_the_order_statistics_of_its_coverage() -> None:
+    mase = common.bench_module("mase")
+    assert mase.median_interval([5.0, 1.0, 3.0, 2.0, 4.0]) == (1.0, 5.0)
+    assert mase.median_interval([float(v) for v in range(1, 10)]) == (2.0, 8.0)
+    assert mase.median_interval([float(v) for v in range(1, 21)]) == (6.0, 15.0)
+    assert mase.median_interval([1.0, 2.0, 3.0]) is None
+    assert mase.median_interval([1.0, 2.0, 3.0], level=0.75) == (1.0, 3.0)
 
 
 def test_mase_goals_parse_and_refuse() -> None:
