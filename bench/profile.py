@@ -27,7 +27,11 @@ calls (so every part is exclusive and the parts add up):
   ``TrialSpaces.disable``;
 - setup: building the batch (``BatchSimulation.__init__``: reset, Spaces) and the
   extractor's ``start``;
-- other: the rest of ``run_batch`` (the step loop, the checks in ``step``).
+- other: the rest of ``run_batch`` (the step loop, the checks in ``step``);
+- compiled loops (with ``--loops``): every call of a loop of
+  :mod:`sdbc_sim.compiled`, taken out of the part that made it, so that each
+  part keeps what lies between its loops (numpy's work, Python's); the SDBC
+  extractor's kernels, which it calls directly, stay in its part.
 
 The first 5 genomes run first, untimed, so that what a process pays once (first
 calls, numba imported and the compiled loops loaded) is not charged to a part.
@@ -39,8 +43,8 @@ it wraps. Robot-steps count every body of every trial for every step it took, as
 ``bench/engine.py`` counts them.
 
 Run: ``scripts/sdbc bench profile`` (options: ``--task``, ``--genomes``,
-``--trials``, ``--steps``, ``--seed``, ``--no-sdbc``, ``--physics NAME=VALUE``,
-``--core N``, ``--json FILE``).
+``--trials``, ``--steps``, ``--seed``, ``--no-sdbc``, ``--loops``, ``--physics
+NAME=VALUE``, ``--core N``, ``--json FILE``).
 """
 
 from __future__ import annotations
@@ -65,6 +69,8 @@ from sdbc_sim.physics import TrialSpaces
 from sdbc_sim.task import Task
 from sdbc_sim.tasks import make_task
 
+from sdbc_sim import compiled
+
 PARTS = (
     "chipmunk step",
     "kinematic step",
@@ -80,6 +86,7 @@ PARTS = (
     "compaction",
     "setup",
     "other",
+    "compiled loops",
 )
 
 
@@ -128,8 +135,11 @@ def patched(owner: Any, name: str, replacement: Any) -> Iterator[None]:
 
 
 @contextmanager
-def instrumented(clock: Clock, task: Task, extractor: SdbcExtractor | None):
-    """The engine's functions wrapped in ``clock`` for the duration."""
+def instrumented(
+    clock: Clock, task: Task, extractor: SdbcExtractor | None, loops: bool = False
+):
+    """The engine's functions wrapped in ``clock`` for the duration; with
+    ``loops``, the compiled loops too."""
     targets: list[tuple[Any, str, str]] = [
         (pymunk.Space, "step", "chipmunk step"),
         (TrialSpaces, "read", "bulk transfer"),
@@ -155,6 +165,8 @@ def instrumented(clock: Clock, task: Task, extractor: SdbcExtractor | None):
             (extractor, "observe", "SDBC extractor"),
             (extractor, "start", "setup"),
         ]
+    if loops:
+        targets.append((compiled._Loop, "__call__", "compiled loops"))
     with ExitStack() as stack:
         for owner, name, part in targets:
             # A class's function is wrapped as a function (it binds as a method);
@@ -191,8 +203,10 @@ def profile_task(
     seed: int,
     settings: EngineSettings,
     sdbc: bool,
+    loops: bool = False,
 ) -> Profile:
-    """Runs and profiles one batch of the task."""
+    """Runs and profiles one batch of the task (with ``loops``, the compiled
+    loops as a part of their own)."""
     task = make_task(name) if steps is None else make_task(name, max_steps=steps)
     g, s = random_batch(task, genomes, trials, np.random.default_rng(seed))
     extractor = SdbcExtractor(check_values=False) if sdbc else None
@@ -203,7 +217,7 @@ def profile_task(
     # of the step.
     warm_up = [SdbcExtractor(check_values=False)] if sdbc else []
     run_batch(task, g[:5], s[:5], warm_up, settings=settings)
-    with instrumented(clock, task, extractor):
+    with instrumented(clock, task, extractor, loops):
         t0 = time.process_time()
         result = run_batch(task, g, s, observers, settings=settings)
         total = time.process_time() - t0
@@ -253,6 +267,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_batch_arguments(parser, genomes=200, trials=10, seed=0)
     parser.add_argument("--no-sdbc", action="store_true", help="no SDBC extractor")
+    parser.add_argument(
+        "--loops",
+        action="store_true",
+        help="the compiled loops as a part of their own",
+    )
     parser.add_argument("--core", type=int, help="pin to this core (default: none)")
     parser.add_argument("--json", type=Path, help="also write the profiles here")
     args = parser.parse_args()
@@ -269,6 +288,7 @@ def main() -> None:
             args.seed,
             settings,
             not args.no_sdbc,
+            args.loops,
         )
         profiles.append(p)
         print(report(p), flush=True)

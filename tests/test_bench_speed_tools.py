@@ -70,6 +70,23 @@ def test_profile_times_the_kinematic_step_in_place_of_chipmunk() -> None:
     assert "chipmunk + bulk transfer" not in engine_profile.report(p)
 
 
+def test_profile_takes_the_compiled_loops_out_of_their_parts() -> None:
+    """With ``loops``, the calls of the compiled loops are counted in a part of
+    their own: the parts still add up, and the loops are unwrapped after;
+    without it that part stays empty."""
+    call = compiled._Loop.__call__
+    settings = common.engine_settings(["model=kinematic"])
+    args = ("gate_escape", 2, 2, 20, 0, settings)
+    p = engine_profile.profile_task(*args, sdbc=True, loops=True)
+    assert compiled._Loop.__call__ is call
+    assert sum(p.seconds.values()) == pytest.approx(p.total)
+    # Every step calls the drive's loop at least.
+    assert p.calls["compiled loops"] >= 20
+    whole = engine_profile.profile_task(*args, sdbc=True)
+    assert whole.calls["compiled loops"] == 0
+    assert whole.seconds["compiled loops"] == 0.0
+
+
 @pytest.mark.parametrize("model", ["rigid", "kinematic"])
 def test_engine_bench_floor_times_each_model(model: str) -> None:
     saved = [(c.read, c.step, c.separate) for c in (TrialSpaces, KinematicTrials)]
