@@ -266,3 +266,37 @@ def test_a_node_program_starts_with_sigint_at_its_default_action(tmp_path):
         [sys.executable, "-m", OWNED, str(os.getpid()), "1", "sigint_probe"], env
     )
     assert done.stdout == "True\n"
+
+
+def test_a_process_killed_after_its_timeout_leaves_its_stacks_in_its_log(tmp_path):
+    """A node that does not stop within the shutdown timeout is SIGKILLed, but
+    first writes its threads' Python stacks to its log: where it hung."""
+    from sdbc_evolution.graph.processes import (
+        NodeProcess,
+        ProcessGraph,
+        child_environment,
+    )
+
+    (tmp_path / "deaf_node.py").write_text(
+        "import signal, time\n"
+        "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+        "print('up', flush=True)\n"
+        "def hangs_here():\n"
+        "    time.sleep(600)\n"
+        "hangs_here()\n"
+    )
+    env = child_environment()
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env["PYTHONPATH"]])
+    logs = tmp_path / "logs"
+    graph = ProcessGraph(
+        [NodeProcess("deaf", "deaf_node")], shutdown_timeout=1.0, log_dir=logs, env=env
+    )
+    graph.start()
+    log = logs / "deaf.log"
+    deadline = time.monotonic() + 60.0
+    while "up" not in log.read_text():
+        assert time.monotonic() < deadline, log.read_text()
+        time.sleep(0.1)
+    assert graph.stop() == {"deaf": -signal.SIGKILL}
+    text = log.read_text()
+    assert "most recent call first" in text and "hangs_here" in text, text

@@ -17,6 +17,7 @@ Usage (what :mod:`sdbc_evolution.graph.processes` runs)::
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import runpy
 import select
@@ -71,6 +72,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     # import lock held, and the process then hung on its way out until the
     # launcher killed it (a stop at a graph's start, about 1 in 60 under load).
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    # A node that outlives the launcher's shutdown timeout gets SIGUSR1 before
+    # SIGKILL: its threads' Python stacks then show in its log where it hung.
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) < 3:
         sys.exit("usage: python -m sdbc_evolution.graph.owned OWNER GRACE MODULE ...")

@@ -61,6 +61,9 @@ CONTROLLER_MODULE = "sdbc_sim.nodes.controller_node"
 EVOLUTION_MODULE = "sdbc_evolution.nodes.evolution_node"
 RECORDER_MODULE = "sdbc_evolution.nodes.recorder_node"
 OWNED_MODULE = "sdbc_evolution.graph.owned"
+STACKS_SECONDS = 1.0
+"""Seconds a process that outlived the shutdown timeout gets to write its
+threads' Python stacks to its output (SIGUSR1) before it is killed."""
 """What every node process runs under: it stops the node when the launcher ends."""
 DEFAULT_RECORD_TOPICS = ("clock", "task_state", "poses", "markers")
 """Topics of each simulator graph recorded when the graph file lists none, besides
@@ -397,7 +400,8 @@ class ProcessGraph:
         popen.wait()
 
     def stop(self) -> dict[str, int]:
-        """Stops every process: SIGINT, then SIGKILL after ``shutdown_timeout``,
+        """Stops every process: SIGINT, then SIGKILL after ``shutdown_timeout``
+        (SIGUSR1 just before, for its threads' stacks in its log),
         first the others, then those that stop last (each round with its own
         timeout); then removes the Fast DDS files they left. Returns the exit
         codes."""
@@ -441,6 +445,12 @@ class ProcessGraph:
             try:
                 codes[name] = popen.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
+                # Its threads' stacks to its log first (graph/owned.py), so that
+                # where it hung can be read.
+                with contextlib.suppress(ProcessLookupError):
+                    popen.send_signal(signal.SIGUSR1)
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    popen.wait(STACKS_SECONDS)
                 popen.kill()
                 codes[name] = popen.wait()
         return codes
