@@ -61,10 +61,10 @@ CONTROLLER_MODULE = "sdbc_sim.nodes.controller_node"
 EVOLUTION_MODULE = "sdbc_evolution.nodes.evolution_node"
 RECORDER_MODULE = "sdbc_evolution.nodes.recorder_node"
 OWNED_MODULE = "sdbc_evolution.graph.owned"
+"""What every node process runs under: it stops the node when the launcher ends."""
 STACKS_SECONDS = 1.0
 """Seconds a process that outlived the shutdown timeout gets to write its
 threads' Python stacks to its output (SIGUSR1) before it is killed."""
-"""What every node process runs under: it stops the node when the launcher ends."""
 DEFAULT_RECORD_TOPICS = ("clock", "task_state", "poses", "markers")
 """Topics of each simulator graph recorded when the graph file lists none, besides
 every robot's sensors and command, and the evolution node's topics when it runs
