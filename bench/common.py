@@ -1,5 +1,7 @@
 """Pieces the speed benchmarks share: random batches, physics overrides from the
-command line, pinning to one core, and loading one benchmark from another."""
+command line, pinning to one core, loading one benchmark from another, and an
+attribute replaced for the length of a block (the engine's functions, wrapped in
+timers)."""
 
 from __future__ import annotations
 
@@ -9,6 +11,8 @@ import importlib.util
 import os
 import sys
 import types
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -140,3 +144,18 @@ def bench_module(name: str) -> types.ModuleType:
     sys.modules[module_name] = module  # dataclasses look their module up
     spec.loader.exec_module(module)
     return module
+
+
+@contextmanager
+def patched(owner: Any, name: str, replacement: Any) -> Iterator[None]:
+    """``owner.name`` replaced while the context lasts."""
+    had_own = name in vars(owner)
+    saved = vars(owner).get(name)
+    setattr(owner, name, replacement)
+    try:
+        yield
+    finally:
+        if had_own:
+            setattr(owner, name, saved)
+        else:
+            delattr(owner, name)

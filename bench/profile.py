@@ -52,7 +52,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,7 +60,13 @@ from typing import Any
 
 import numpy as np
 import pymunk
-from common import add_batch_arguments, batch_arguments, pin_to_core, random_batch
+from common import (
+    add_batch_arguments,
+    batch_arguments,
+    patched,
+    pin_to_core,
+    random_batch,
+)
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import BatchSimulation, EngineSettings, run_batch
 from sdbc_sim.kinematic import KinematicTrials
@@ -117,21 +123,6 @@ class Clock:
                     children[-1] += elapsed
 
         return timed
-
-
-@contextmanager
-def patched(owner: Any, name: str, replacement: Any) -> Iterator[None]:
-    """``owner.name`` replaced while the context lasts."""
-    had_own = name in vars(owner)
-    saved = vars(owner).get(name)
-    setattr(owner, name, replacement)
-    try:
-        yield
-    finally:
-        if had_own:
-            setattr(owner, name, saved)
-        else:
-            delattr(owner, name)
 
 
 @contextmanager

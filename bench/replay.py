@@ -49,7 +49,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from common import add_batch_arguments, batch_arguments, pin_to_core, random_batch
+from common import (
+    add_batch_arguments,
+    batch_arguments,
+    patched,
+    pin_to_core,
+    random_batch,
+)
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import EngineSettings, run_batch
 from sdbc_sim.tasks import make_task
@@ -116,11 +122,8 @@ def timing(start: int, count: int) -> Iterator[dict[str, LoopCalls]]:
         entry.calls += 1
         return result
 
-    compiled._Loop.__call__ = timed  # type: ignore[method-assign]
-    try:
+    with patched(compiled._Loop, "__call__", timed):
         yield log
-    finally:
-        compiled._Loop.__call__ = call  # type: ignore[method-assign]
 
 
 @contextmanager
@@ -141,11 +144,8 @@ def recording(
             kept.setdefault(name, []).append(_copy(args))
         return call(loop, *args)
 
-    compiled._Loop.__call__ = copying  # type: ignore[method-assign]
-    try:
+    with patched(compiled._Loop, "__call__", copying):
         yield kept
-    finally:
-        compiled._Loop.__call__ = call  # type: ignore[method-assign]
 
 
 def loop_name(loop: compiled._Loop) -> str:

@@ -146,12 +146,12 @@ def test_replay_times_in_one_run_and_copies_in_another() -> None:
             seen.append(np.array(args[0], copy=True))
         return call(loop, *args)
 
-    compiled._Loop.__call__ = spy  # type: ignore[method-assign]
-    try:
-        with replay.recording({"engine._drive_rows"}, 3, 4) as kept:
-            run_batch(task, g, s, settings=settings)
-    finally:
-        compiled._Loop.__call__ = call  # type: ignore[method-assign]
+    with (
+        common.patched(compiled._Loop, "__call__", spy),
+        replay.recording({"engine._drive_rows"}, 3, 4) as kept,
+    ):
+        run_batch(task, g, s, settings=settings)
+    assert compiled._Loop.__call__ is call
     assert list(kept) == ["engine._drive_rows"]
     copies = kept["engine._drive_rows"]
     assert len(copies) == 4
