@@ -23,13 +23,14 @@ the oracle). Functions of the C maths library stay in numpy, whose
 implementations may differ from the ones numba calls in the last bit (numpy's
 ``exp`` and ``arctan2`` are its own vectorised code on a CPU with AVX-512), with
 exceptions where they were most of a step's cost as whole arrays: the drive
-(``sdbc_sim.engine._drive_rows``) takes each new heading's cosine and sine, and
-the task state (``sdbc_sim.task._kinematics``) and resource sharing's energy
-rules each speed's ``hypot``, from the C library numba calls: the same glibc
-functions numpy's float64 ``cos``, ``sin`` and ``hypot`` call here, which their
-tests compare to the bit. Predator-prey's turns wrap angles with ``np.mod``,
-which numba and numpy both compute as an exact ``fmod`` with the same sign
-correction.
+(``sdbc_sim.engine._drive_rows``) takes each new heading's cosine and sine
+from the C library numba calls: the same glibc functions numpy's float64 ``cos``
+and ``sin`` call here, which its tests compare to the bit. The task state
+(``sdbc_sim.task._kinematics``) and resource sharing's energy rules take each
+speed's ``hypot`` by :func:`sdbc_sim.libm.hypot`, glibc's operations inline,
+compared to the bit with numpy's ``np.hypot``, which calls glibc's.
+Predator-prey's turns wrap angles with ``np.mod``, which numba and numpy both
+compute as an exact ``fmod`` with the same sign correction.
 """
 
 from __future__ import annotations

@@ -68,7 +68,6 @@ A trial's result must depend only on (settings, genome, seed).
 from __future__ import annotations
 
 import dataclasses
-import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -77,6 +76,7 @@ from typing import Any, ClassVar, Generic, Self, TypeVar
 import numpy as np
 
 from sdbc_sim.compiled import compiled
+from sdbc_sim.libm import hypot
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.task_state import GroupState, TaskDescription
 
@@ -207,7 +207,7 @@ def kinematics_row(
     out[t, i, 0] = position[t, i, 0]
     out[t, i, 1] = position[t, i, 1]
     out[t, i, 2] = angular_velocity[t, i]
-    out[t, i, 3] = math.hypot(velocity[t, i, 0], velocity[t, i, 1])
+    out[t, i, 3] = hypot(velocity[t, i, 0], velocity[t, i, 1])
 
 
 def kinematics_and_centre_row(
@@ -230,7 +230,7 @@ def kinematics_and_centre_row(
 
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64[:, :, ::1])",
-    calls=(kinematics_row,),
+    calls=(kinematics_row, hypot),
 )
 def _kinematics(
     position: np.ndarray,
@@ -240,8 +240,9 @@ def _kinematics(
 ) -> None:  # pragma: no cover - compiled; tested against the numpy form
     """The first four columns of ``out`` (B, R, K): x, y, angular velocity and
     |v|, read from the engine's strided state rows in one pass (as whole arrays:
-    a strided copy, a strided hypot and three column writes). |v| is the C
-    library's ``hypot``, which numpy's ``np.hypot`` calls too."""
+    a strided copy, a strided hypot and three column writes). |v| is
+    :func:`sdbc_sim.libm.hypot`: the C library's ``hypot``, which numpy's
+    ``np.hypot`` calls too, to the bit."""
     for t in range(out.shape[0]):
         for i in range(out.shape[1]):
             kinematics_row(position, angular_velocity, velocity, out, t, i)

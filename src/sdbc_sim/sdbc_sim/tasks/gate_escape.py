@@ -57,6 +57,7 @@ import numpy as np
 
 from sdbc_sim.arena import WallRays, speed_and_turn, uniform, wall_group, wall_state
 from sdbc_sim.compiled import compiled
+from sdbc_sim.libm import hypot
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     TWO_PI,
@@ -512,7 +513,7 @@ def _escape_rules(
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64, float64, "
     "float64, float64[:, :, ::1], float64[:, :, ::1])",
-    calls=(kinematics_and_centre_row, kinematics_row),
+    calls=(kinematics_and_centre_row, kinematics_row, hypot),
 )
 def _agent_attributes(
     position: np.ndarray,

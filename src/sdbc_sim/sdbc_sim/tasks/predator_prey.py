@@ -70,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sdbc_sim.compiled import compiled
+from sdbc_sim.libm import hypot
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import (
     bearing_arguments,
@@ -649,7 +650,7 @@ def _pursuit(
 @compiled(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], boolean[:, :], "
     "float64[:, :, ::1], float64[:, :, ::1], boolean[:, ::1])",
-    calls=(kinematics_and_centre_row, kinematics_row),
+    calls=(kinematics_and_centre_row, kinematics_row, hypot),
 )
 def _body_attributes(
     position: np.ndarray,

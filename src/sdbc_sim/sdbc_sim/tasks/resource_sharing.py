@@ -115,6 +115,7 @@ import numpy as np
 
 from sdbc_sim.arena import draw_team
 from sdbc_sim.compiled import compiled
+from sdbc_sim.libm import hypot
 from sdbc_sim.network import NetworkShape
 from sdbc_sim.sensors import bearing_arguments, neighbour_sectors
 from sdbc_sim.settings import (
@@ -585,7 +586,8 @@ def _station_readings(
     "void(float64[:, :], float64[:, :], int64[:, :], boolean[:, :], "
     "float64[:, :, :], float64[:, :, :], float64[::1], int64, boolean, boolean, "
     "boolean[:, :], float64[:], int64[:], float64[:], float64[:], float64[:], "
-    "boolean[::1])"
+    "boolean[::1])",
+    calls=(hypot,),
 )
 def _energy_rules(
     energy: np.ndarray,
@@ -616,7 +618,7 @@ def _energy_rules(
     some thirty operations over (B, N) at every step; the loop does each robot's
     operations in their order and sums the robots in index order, as
     ``robot_sum`` does (``tests/sdbc_sim/tasks/test_resource_sharing.py``). A
-    robot's speed |v| (``BodyState.speed``, the C library's ``hypot`` as numpy's)
+    robot's speed |v| (``BodyState.speed``, by :func:`sdbc_sim.libm.hypot`)
     is taken only where a rule reads it: for a robot alive on the station, and at
     a sampled step; as a whole array it was a strided ``hypot`` of every robot at
     every step.
@@ -640,9 +642,7 @@ def _energy_rules(
             distance = np.sqrt(d2)
             near = alive and distance < dock
             speed = (
-                math.hypot(velocity[b, r, 0], velocity[b, r, 1])
-                if near or sample
-                else 0.0
+                hypot(velocity[b, r, 0], velocity[b, r, 1]) if near or sample else 0.0
             )
             docked = near and speed < stationary
             charges = docked and docked_steps[b, r] >= charge_delay
@@ -717,7 +717,7 @@ def _commands(
     "void(float64[:, :, :], float64[:, :], float64[:, :, :], float64[:, :], "
     "boolean[:, :], float64[:, :, ::1], boolean[:, ::1], float64[:, :, ::1], "
     "float64[:, :, ::1])",
-    calls=(kinematics_and_centre_row, kinematics_row),
+    calls=(kinematics_and_centre_row, kinematics_row, hypot),
 )
 def _agent_attributes(
     position: np.ndarray,
