@@ -13,17 +13,26 @@ same tasks and layouts. It also says, as information, whether the two layouts of
 file agree with each other.
 
 This is how an optimisation of the engine is shown not to change any result:
-write a file on the code before, another on the code after, compare.
+write a file on the code before, another on the code after, compare. ``--engine
+DIR`` writes with the sources of the checkout ``DIR`` (a worktree of the commit
+before) instead of this one's; a ``PYTHONPATH`` set before ``scripts/sdbc`` does
+not, as the environment puts this checkout's sources first. Each file records a
+digest of the engine sources that wrote it, and ``--compare`` says when both
+came from the same sources: then they show nothing about a change of the code
+(only, run on two machines, that the machines agree).
 
 Run: ``scripts/sdbc bench identity --write results/before.npz`` (options:
-``--task``, ``--genomes``, ``--trials``, ``--steps``, ``--seed``, ``--physics
-NAME=VALUE``), then ``scripts/sdbc bench identity --compare A B``.
+``--engine DIR``, ``--task``, ``--genomes``, ``--trials``, ``--steps``,
+``--seed``, ``--physics NAME=VALUE``), then ``scripts/sdbc bench identity
+--compare A B``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
+import os
 import sys
 from pathlib import Path
 
@@ -33,9 +42,46 @@ from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import EngineSettings, run_batch
 from sdbc_sim.tasks import make_task
 
+import sdbc_evolution
+import sdbc_sim
+
 LAYOUTS = {"space500": 500, "space7": 7}
 """Layouts written: name -> trials per Space."""
 FIELDS = ("fitness", "characterisation", "length", "sdbc")
+SOURCES = "engine/sources"
+"""Key of the digest of the engine sources that wrote a file."""
+
+
+def sources_digest() -> str:
+    """sha256 over the Python sources of the loaded ``sdbc_sim`` and
+    ``sdbc_evolution`` packages, with their paths inside the package."""
+    digest = hashlib.sha256()
+    for package in (sdbc_sim, sdbc_evolution):
+        root = Path(package.__file__).parent
+        for path in sorted(root.rglob("*.py")):
+            digest.update(f"{package.__name__}/{path.relative_to(root)}".encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def with_engine(checkout: Path, argv: list[str]) -> None:
+    """Runs this tool again, ``--engine`` left out of ``argv``, with the
+    sources of ``checkout`` first on the path."""
+    src = checkout / "src"
+    if not (src / "sdbc_sim" / "sdbc_sim").is_dir():
+        raise SystemExit(f"identity: --engine {checkout}: no src/sdbc_sim there")
+    path = os.pathsep.join(
+        [
+            str(src / "sdbc_sim"),
+            str(src / "sdbc_evolution"),
+            os.environ.get("PYTHONPATH", ""),
+        ]
+    )
+    os.execve(
+        sys.executable,
+        [sys.executable, __file__, *argv],
+        {**os.environ, "PYTHONPATH": path},
+    )
 
 
 def run_task(
@@ -78,7 +124,16 @@ def differing_trials(a: np.ndarray, b: np.ndarray) -> int:
 def compare(path_a: Path, path_b: Path) -> bool:
     """Prints the comparison; True when the files agree to the bit."""
     a, b = np.load(path_a), np.load(path_b)
-    keys_a, keys_b = set(a.files), set(b.files)
+    keys_a, keys_b = set(a.files) - {SOURCES}, set(b.files) - {SOURCES}
+    if SOURCES in a.files and SOURCES in b.files and a[SOURCES] == b[SOURCES]:
+        print(
+            "note: both files were written by the same engine sources, so they "
+            "show nothing about a change of the code (--engine DIR writes with "
+            "another checkout's)"
+        )
+    for path, data in ((path_a, a), (path_b, b)):
+        if SOURCES not in data.files:
+            print(f"  (information) {path.name}: its engine sources were not recorded")
     same = True
     for k in sorted(keys_a ^ keys_b):
         print(f"only in {path_a if k in keys_a else path_b}: {k}")
@@ -125,8 +180,24 @@ def main() -> None:
     mode = parser.add_mutually_exclusive_group(required=True)
     mode.add_argument("--write", type=Path, metavar="FILE")
     mode.add_argument("--compare", type=Path, nargs=2, metavar=("A", "B"))
+    parser.add_argument(
+        "--engine",
+        type=Path,
+        metavar="DIR",
+        help="write with the sources of this checkout (default: this one's)",
+    )
     add_batch_arguments(parser, genomes=40, trials=3, seed=16)
     args = parser.parse_args()
+    if args.engine is not None:
+        if args.compare:
+            parser.error("--engine writes; --compare reads files only")
+        argv = sys.argv[1:]
+        at = argv.index("--engine") if "--engine" in argv else None
+        if at is None:  # --engine=DIR
+            argv = [a for a in argv if not a.startswith("--engine=")]
+        else:
+            del argv[at : at + 2]
+        with_engine(args.engine.resolve(), argv)
     if args.compare:
         sys.exit(0 if compare(*args.compare) else 1)
     names, settings = batch_arguments(parser, args)
@@ -136,9 +207,10 @@ def main() -> None:
             run_task(name, args.genomes, args.trials, args.steps, args.seed, settings)
         )
         print(f"{name}: {args.genomes * args.trials} trials x {len(LAYOUTS)} layouts")
+    data[SOURCES] = np.array(sources_digest())
     args.write.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(args.write, **data)
-    print(f"wrote {args.write}")
+    print(f"wrote {args.write} (engine sources: {Path(sdbc_sim.__file__).parents[3]})")
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ overrides are parsed and refused as the command line needs."""
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -46,6 +47,69 @@ def test_identity_finds_a_one_bit_change(tmp_path: Path) -> None:
     np.savez(b, **data)
     assert not identity.compare(a, b)
     assert identity.differing_trials(np.load(a)["predator_prey/space7/sdbc"], sdbc) == 1
+
+
+def test_identity_says_when_both_files_came_from_the_same_engine_sources(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two files of the same sources agree whatever the change was: a comparison
+    of them must not read as a change shown harmless."""
+    data = identity.run_task("predator_prey", 2, 1, 5, 1, EngineSettings())
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    np.savez(a, **data, **{identity.SOURCES: np.array(identity.sources_digest())})
+    np.savez(b, **data, **{identity.SOURCES: np.array(identity.sources_digest())})
+    assert identity.compare(a, b)
+    assert "same engine sources" in capsys.readouterr().out
+    np.savez(b, **data, **{identity.SOURCES: np.array("another")})
+    assert identity.compare(a, b)
+    assert "same engine sources" not in capsys.readouterr().out
+
+
+def test_identity_writes_with_the_sources_of_the_checkout_it_is_given(
+    tmp_path: Path,
+) -> None:
+    """``--engine DIR`` runs the batches with DIR's sources, not the ones the
+    environment put first on the path (here another checkout's, linked)."""
+    repo = BENCH.parent
+    other = tmp_path / "other"
+    for package in ("sdbc_sim", "sdbc_evolution"):
+        (other / "src" / package).mkdir(parents=True)
+        (other / "src" / package / package).symlink_to(repo / "src" / package / package)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(
+            [
+                str(other / "src" / "sdbc_sim"),
+                str(other / "src" / "sdbc_evolution"),
+                os.environ.get("PYTHONPATH", ""),
+            ]
+        ),
+    }
+    out = tmp_path / "a.npz"
+    small = ["--write", str(out), "--task", "predator_prey"]
+    small += ["--genomes", "2", "--trials", "1", "--steps", "5"]
+
+    def written(*engine: str) -> str:
+        done = subprocess.run(
+            [sys.executable, str(BENCH / "identity.py"), *engine, *small],
+            capture_output=True,
+            text=True,
+            env=env,
+            check=True,
+        )
+        return done.stdout
+
+    assert f"engine sources: {other})" in written()
+    assert f"engine sources: {repo})" in written("--engine", str(repo))
+    assert str(np.load(out)[identity.SOURCES]) == identity.sources_digest()
+    missing = subprocess.run(
+        [sys.executable, str(BENCH / "identity.py"), "--engine", str(tmp_path)]
+        + ["--write", str(out)],
+        capture_output=True,
+        text=True,
+    )
+    assert missing.returncode != 0
+    assert f"--engine {tmp_path}: no src/sdbc_sim there" in missing.stderr
 
 
 def test_profile_parts_add_up_and_unwrap() -> None:
