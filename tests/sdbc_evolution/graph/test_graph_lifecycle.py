@@ -268,6 +268,27 @@ def test_a_node_program_starts_with_sigint_at_its_default_action(tmp_path):
     assert done.stdout == "True\n"
 
 
+def test_a_node_program_starts_without_the_process_pool_machinery(tmp_path):
+    """Watching the launcher takes two constants and a pidfd: a node (one per
+    robot in a live graph) does not pay at start for importing what a pool of
+    workers needs (multiprocessing, concurrent.futures: about 30 ms)."""
+    (tmp_path / "import_probe.py").write_text(
+        "import sys\n"
+        "print([m for m in ('multiprocessing', 'concurrent.futures') "
+        "if m in sys.modules], flush=True)\n"
+    )
+    env = _launcher_env(tmp_path)
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env["PYTHONPATH"]])
+    done = subprocess.run(
+        [sys.executable, "-m", OWNED, str(os.getpid()), "1", "import_probe"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.stdout == "[]\n", done.stderr
+
+
 def test_a_process_killed_after_its_timeout_leaves_its_stacks_in_its_log(tmp_path):
     """A node that does not stop within the shutdown timeout is SIGKILLed, but
     first writes its threads' Python stacks to its log: where it hung."""

@@ -5,7 +5,7 @@ terminal reaches the launcher alone, which then stops the nodes in order), so
 nothing would stop the nodes if the launcher died without stopping them (SIGKILL,
 an out-of-memory kill). Each node therefore runs under this module, which watches
 the launcher as ``sdbc-evolve``'s workers watch their owner
-(:func:`sdbc_evolution.run.processes.watch_owner`: a pidfd, readable once the
+(:func:`sdbc_evolution.run.owner.watch_owner`: a pidfd, readable once the
 process has ended), but stops the node the way the launcher would: SIGINT first,
 so that the recorder closes its bag and Fast DDS removes its shared-memory files,
 then, after ``grace`` seconds, an immediate exit.
@@ -30,9 +30,9 @@ from collections.abc import Sequence
 
 def watch_launcher(owner: int, grace: float) -> None:
     """Stops this process when the process ``owner`` ends: SIGINT at once, an
-    exit with :data:`~sdbc_evolution.run.processes.ORPHAN_EXIT` ``grace``
+    exit with :data:`~sdbc_evolution.run.owner.ORPHAN_EXIT` ``grace``
     seconds later if it is still running."""
-    from sdbc_evolution.run.processes import ORPHAN_EXIT, OWNER_POLL_SECONDS
+    from sdbc_evolution.run.owner import ORPHAN_EXIT, OWNER_POLL_SECONDS
 
     try:
         fd: int | None = os.pidfd_open(owner)

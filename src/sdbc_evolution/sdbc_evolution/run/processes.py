@@ -10,11 +10,12 @@ them the same way, from this module:
 - one simulation per core, so each child limits BLAS and OpenMP to one thread
   (more would only oversubscribe the cores);
 - each child ends when the process that made it (its owner) ends, however it
-  ends, SIGKILL included (:func:`watch_owner`). The kernel's parent-death signal
-  cannot do this here: a forkserver child's parent is the fork server, which
-  stays up as long as any child holds its end of the server's pipe, and every
-  child does. So a child watches its owner through a pidfd and exits when the
-  owner is gone; the fork server, left without clients, exits too.
+  ends, SIGKILL included (:func:`~sdbc_evolution.run.owner.watch_owner`). The
+  kernel's parent-death signal cannot do this here: a forkserver child's parent
+  is the fork server, which stays up as long as any child holds its end of the
+  server's pipe, and every child does. So a child watches its owner through a
+  pidfd and exits when the owner is gone; the fork server, left without
+  clients, exits too.
 
 The node processes of a live graph are a different matter (a supervised command
 line each); :mod:`sdbc_evolution.graph.processes` starts those.
@@ -23,9 +24,6 @@ line each); :mod:`sdbc_evolution.graph.processes` starts those.
 from __future__ import annotations
 
 import os
-import select
-import threading
-import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
@@ -33,6 +31,8 @@ from multiprocessing.context import ForkServerContext
 from multiprocessing.process import BaseProcess
 from multiprocessing.queues import Queue
 from typing import Any
+
+from sdbc_evolution.run.owner import watch_owner
 
 
 def available_cores() -> int:
@@ -48,44 +48,6 @@ def limit_threads() -> None:
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1)
-
-
-ORPHAN_EXIT = 128 + 9
-"""Exit status of a child whose owner is gone (as if killed by SIGKILL with it)."""
-OWNER_POLL_SECONDS = 1.0
-"""Where pidfds are missing: how often a child looks whether its owner lives."""
-
-
-def watch_owner(owner: int) -> None:
-    """Ends this process (at once, with :data:`ORPHAN_EXIT`) when the process
-    ``owner`` ends; a daemon thread waits for it on a pidfd. A run's checkpoint
-    is atomic, so whatever the child was doing is redone on resume."""
-    try:
-        fd = os.pidfd_open(owner)
-    except ProcessLookupError:
-        os._exit(ORPHAN_EXIT)  # gone before we looked
-    except (AttributeError, OSError):
-        fd = None  # no pidfds (not Linux >= 5.3): poll instead
-
-    def wait() -> None:
-        if fd is not None:
-            select.select([fd], [], [])  # readable once the owner has exited
-        else:
-            while _alive(owner):
-                time.sleep(OWNER_POLL_SECONDS)
-        os._exit(ORPHAN_EXIT)
-
-    threading.Thread(target=wait, name="watch-owner", daemon=True).start()
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _start_worker(owner: int) -> None:
