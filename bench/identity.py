@@ -176,7 +176,11 @@ def compare(path_a: Path, path_b: Path) -> bool:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    # No abbreviations: --engine is taken out of the arguments by its full name
+    # before the tool runs again, and an abbreviation left in would run it again.
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], allow_abbrev=False
+    )
     mode = parser.add_mutually_exclusive_group(required=True)
     mode.add_argument("--write", type=Path, metavar="FILE")
     mode.add_argument("--compare", type=Path, nargs=2, metavar=("A", "B"))
