@@ -4,8 +4,8 @@ The launcher starts every node in a session of its own (so that Ctrl-C in the
 terminal reaches the launcher alone, which then stops the nodes in order), so
 nothing would stop the nodes if the launcher died without stopping them (SIGKILL,
 an out-of-memory kill). Each node therefore runs under this module, which watches
-the launcher as ``sdbc-evolve``'s workers watch their owner
-(:func:`sdbc_evolution.run.owner.watch_owner`: a pidfd, readable once the
+the launcher with the watch ``sdbc-evolve``'s workers use for their owner
+(:func:`sdbc_evolution.run.owner.when_gone`: a pidfd, readable once the
 process has ended), but stops the node the way the launcher would: SIGINT first,
 so that the recorder closes its bag and Fast DDS removes its shared-memory files,
 then, after ``grace`` seconds, an immediate exit.
@@ -20,41 +20,24 @@ from __future__ import annotations
 import faulthandler
 import os
 import runpy
-import select
 import signal
 import sys
-import threading
 import time
 from collections.abc import Sequence
 
 
 def watch_launcher(owner: int, grace: float) -> None:
-    """Stops this process when the process ``owner`` ends: SIGINT at once, an
-    exit with :data:`~sdbc_evolution.run.owner.ORPHAN_EXIT` ``grace``
-    seconds later if it is still running."""
-    from sdbc_evolution.run.owner import ORPHAN_EXIT, OWNER_POLL_SECONDS
+    """Stops this process when the process ``owner`` (its parent) ends: SIGINT
+    at once, an exit with :data:`~sdbc_evolution.run.owner.ORPHAN_EXIT`
+    ``grace`` seconds later if it is still running."""
+    from sdbc_evolution.run.owner import ORPHAN_EXIT, when_gone
 
-    try:
-        fd: int | None = os.pidfd_open(owner)
-    except ProcessLookupError:
-        os._exit(ORPHAN_EXIT)  # gone before we looked
-    except (AttributeError, OSError):
-        fd = None  # no pidfds (not Linux >= 5.3): poll instead
-    if os.getppid() != owner:
-        # The launcher died before the pidfd was open (its pid may be reused).
-        os._exit(ORPHAN_EXIT)
-
-    def wait() -> None:
-        if fd is not None:
-            select.select([fd], [], [])
-        else:
-            while os.getppid() == owner:
-                time.sleep(OWNER_POLL_SECONDS)
+    def stop() -> None:
         os.kill(os.getpid(), signal.SIGINT)
         time.sleep(grace)
         os._exit(ORPHAN_EXIT)
 
-    threading.Thread(target=wait, name="watch-launcher", daemon=True).start()
+    when_gone(owner, stop, parent=True, name="watch-launcher")
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -14,6 +14,8 @@ import os
 import select
 import threading
 import time
+from collections.abc import Callable
+from typing import NoReturn
 
 ORPHAN_EXIT = 128 + 9
 """Exit status of a child whose owner is gone (as if killed by SIGKILL with it)."""
@@ -23,24 +25,60 @@ OWNER_POLL_SECONDS = 1.0
 
 def watch_owner(owner: int) -> None:
     """Ends this process (at once, with :data:`ORPHAN_EXIT`) when the process
-    ``owner`` ends; a daemon thread waits for it on a pidfd. A run's checkpoint
-    is atomic, so whatever the child was doing is redone on resume."""
+    ``owner`` ends. A run's checkpoint is atomic, so whatever the child was
+    doing is redone on resume."""
+    when_gone(owner, _orphaned)
+
+
+def when_gone(
+    owner: int,
+    then: Callable[[], None],
+    *,
+    parent: bool = False,
+    name: str = "watch-owner",
+) -> None:
+    """Calls ``then`` in a daemon thread once the process ``owner`` has ended.
+
+    If ``owner`` is gone already, this process exits at once with
+    :data:`ORPHAN_EXIT` (nothing has started that ``then`` would stop). A pidfd
+    tells when it ends; where pidfds are missing (not Linux >= 5.3) the thread
+    looks every :data:`OWNER_POLL_SECONDS`.
+
+    Args:
+        owner: The pid to watch.
+        then: What to do once it has ended; it runs in the watching thread.
+        parent: ``owner`` is this process's parent. The watch then also sees
+            an owner that died before its pidfd was opened, whose pid may have
+            been reused since, and polls ``getppid()``, which a reused pid
+            cannot fool.
+        name: The watching thread's name.
+    """
+
+    def alive() -> bool:
+        return os.getppid() == owner if parent else _alive(owner)
+
     try:
-        fd = os.pidfd_open(owner)
+        fd: int | None = os.pidfd_open(owner)
     except ProcessLookupError:
-        os._exit(ORPHAN_EXIT)  # gone before we looked
+        _orphaned()  # gone before we looked
     except (AttributeError, OSError):
-        fd = None  # no pidfds (not Linux >= 5.3): poll instead
+        fd = None  # no pidfds: poll instead
+    if parent and not alive():
+        _orphaned()
 
     def wait() -> None:
         if fd is not None:
             select.select([fd], [], [])  # readable once the owner has exited
         else:
-            while _alive(owner):
+            while alive():
                 time.sleep(OWNER_POLL_SECONDS)
-        os._exit(ORPHAN_EXIT)
+        then()
 
-    threading.Thread(target=wait, name="watch-owner", daemon=True).start()
+    threading.Thread(target=wait, name=name, daemon=True).start()
+
+
+def _orphaned() -> NoReturn:
+    os._exit(ORPHAN_EXIT)
 
 
 def _alive(pid: int) -> bool:
