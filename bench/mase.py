@@ -36,10 +36,14 @@ fd13449, this benchmark
    the whole interval does, is short if the whole interval is, and is at the
    goal within the run's noise otherwise; for one that does not reach it, it
    profiles one more batch with that model (``bench/profile.py``: each part of
-   our step in ns per robot-step) and prints it beside MASE's whole step with the
-   SDBC in the same unit (from MASE's median rate) and the cost per robot-step
-   the goal would need, which shows where the difference lies (``--no-profile``
-   leaves the profiles out).
+   our step in ns per robot-step, the compiled loops as a part of their own) and
+   prints it beside MASE's whole step with the SDBC in the same unit (from MASE's
+   median rate) and the cost per robot-step the goal would need, which shows
+   where the difference lies, and says whether a step fused into its compiled
+   passes could reach the goal: what such a step would still pay (the physics'
+   own step and transfer, and the compiled loops, whose arithmetic gives the
+   results their bits) against what lies between them (``--no-profile`` leaves
+   the profiles out).
 
 MASE's robots are kinematic, as ``kinematic`` models them; ``rigid`` (our default)
 puts every contact through pymunk's solver.
@@ -71,7 +75,7 @@ import subprocess
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 from common import bench_module, pin_to_core, random_batch
@@ -381,7 +385,9 @@ def verdicts(
     profiler = bench_module("profile")
     for t, m, mase_rate in short:
         settings = EngineSettings(physics=PhysicsSettings(model=cast(Model, m)))
-        p = profiler.profile_task(t, genomes, trials, None, seed, settings, True)
+        p = profiler.profile_task(
+            t, genomes, trials, None, seed, settings, True, loops=True
+        )
         mase_ns = 1e9 / mase_rate
         print(
             f"\nwhy {t} ({m}) does not reach its goal: MASE's whole step with the "
@@ -391,6 +397,36 @@ def verdicts(
             "above):"
         )
         print(profiler.report(p))
+        print(fused_floor(p, mase_ns / goals[m], profiler.FUSED_FLOOR))
+
+
+def fused_floor(p: Any, need: float, floor_parts: tuple[str, ...]) -> str:
+    """Whether a step fused into compiled passes could reach the goal that
+    allows ``need`` ns per robot-step: what it would still pay (``floor_parts``
+    of the profile ``p``) against what lies between them."""
+    floor = p.ns(*floor_parts)
+    whole = p.total * 1e9 / p.robot_steps
+    if whole <= need:
+        return (
+            f"  this batch's whole step, instrumented, took {whole:.0f} ns per "
+            f"robot-step, within the {need:.0f} the goal allows: the runs above "
+            "fall short by their spread, not by a part of the step"
+        )
+    if floor > need:
+        return (
+            f"  the physics' own step and transfer and the compiled loops alone "
+            f"take at least {floor:.0f} ns per robot-step, more than the "
+            f"{need:.0f} the goal allows: even a step fused into its compiled "
+            "passes, with nothing between them, would be short; the loops (whose "
+            "arithmetic gives the results their bits) or the physics would have "
+            "to get faster"
+        )
+    return (
+        f"  the physics' own step and transfer and the compiled loops take "
+        f"{floor:.0f} of the {need:.0f} ns per robot-step the goal allows; the other "
+        f"{whole - floor:.0f} lie between them (numpy's exp and arctan2, Python, "
+        f"arrays, set-up), and {whole - need:.0f} of those would have to go"
+    )
 
 
 def parse_goals(values: list[str] | None) -> dict[str, float]:

@@ -31,7 +31,7 @@ calls (so every part is exclusive and the parts add up):
 - compiled loops (with ``--loops``): every call of a loop of
   :mod:`sdbc_sim.compiled`, taken out of the part that made it, so that each
   part keeps what lies between its loops (numpy's work, Python's); the SDBC
-  extractor's kernels, which it calls directly, stay in its part.
+  extractor's kernels too, which it takes once per batch and calls directly.
 
 The first 5 genomes run first, untimed, so that what a process pays once (first
 calls, numba imported and the compiled loops loaded) is not charged to a part.
@@ -94,6 +94,11 @@ PARTS = (
     "other",
     "compiled loops",
 )
+FUSED_FLOOR = ("chipmunk step", "kinematic step", "bulk transfer", "compiled loops")
+"""The parts a step fused into a few compiled passes would still pay: the
+physics' own step and the transfer to and from it, and the compiled loops, whose
+arithmetic (each IEEE operation, in its order) gives the results their bits.
+The other parts are what lies between them."""
 
 
 @dataclass
@@ -164,6 +169,15 @@ def instrumented(
             # an instance's bound method is wrapped as it is.
             fn = vars(owner)[name] if isinstance(owner, type) else getattr(owner, name)
             stack.enter_context(patched(owner, name, clock.wrap(part, fn)))
+        if loops:
+            # The SDBC extractor takes its loops' kernels once, through ``load``,
+            # and calls them directly: handed timed kernels, it is timed too.
+            load = vars(compiled._Loop)["load"]
+
+            def timed_load(loop: compiled._Loop) -> Callable[..., Any]:
+                return clock.wrap("compiled loops", load(loop))
+
+            stack.enter_context(patched(compiled._Loop, "load", timed_load))
         yield
 
 
@@ -184,6 +198,10 @@ class Profile:
     def rate(self) -> float:
         """Robot-steps per CPU-second, instrumented."""
         return self.robot_steps / self.total
+
+    def ns(self, *parts: str) -> float:
+        """CPU nanoseconds per robot-step of ``parts`` together."""
+        return 1e9 * sum(self.seconds[part] for part in parts) / self.robot_steps
 
 
 def profile_task(

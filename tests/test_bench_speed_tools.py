@@ -135,14 +135,17 @@ def test_profile_times_the_kinematic_step_in_place_of_chipmunk() -> None:
 
 
 def test_profile_takes_the_compiled_loops_out_of_their_parts() -> None:
-    """With ``loops``, the calls of the compiled loops are counted in a part of
-    their own: the parts still add up, and the loops are unwrapped after;
-    without it that part stays empty."""
-    call = compiled._Loop.__call__
+    """With ``loops``, the calls of the compiled loops (the SDBC extractor's
+    kernels included) are counted in a part of their own: the parts still add
+    up, and the loops are unwrapped after; without it that part stays empty."""
+    call, load = compiled._Loop.__call__, compiled._Loop.load
     settings = common.engine_settings(["model=kinematic"])
     args = ("gate_escape", 2, 2, 20, 0, settings)
     p = engine_profile.profile_task(*args, sdbc=True, loops=True)
-    assert compiled._Loop.__call__ is call
+    assert (compiled._Loop.__call__, compiled._Loop.load) == (call, load)
+    # The SDBC extractor's kernels, which it calls directly, count too.
+    bare = engine_profile.profile_task(*args, sdbc=False, loops=True)
+    assert p.calls["compiled loops"] >= bare.calls["compiled loops"] + 20
     assert sum(p.seconds.values()) == pytest.approx(p.total)
     # Every step calls the drive's loop at least.
     assert p.calls["compiled loops"] >= 20
@@ -329,3 +332,33 @@ def test_study_bench_runs_a_cut_preset_alone_and_joined(
     assert "smoke.yaml cut to 1 runs per treatment and 2 generations" in out
     (row,) = [line for line in out.splitlines() if line.startswith("gate_escape")]
     assert row.endswith("yes")
+
+
+def test_mase_says_whether_a_fused_step_could_reach_the_goal() -> None:
+    """What a step fused into its compiled passes would still pay (the physics
+    and the compiled loops) is set against the cost per robot-step the goal
+    allows: above it, no fusing reaches the goal; below it, the rest is what
+    would have to go; a whole step within it is short by the runs' spread."""
+    mase = common.bench_module("mase")
+    seconds = dict.fromkeys(engine_profile.PARTS, 0.0)
+    seconds |= {"kinematic step": 20e-9, "compiled loops": 140e-9, "network": 40e-9}
+    p = engine_profile.Profile(
+        task="gate_escape",
+        sdbc=True,
+        n_trials=1,
+        steps=1,
+        robot_steps=1,
+        total=200e-9,
+        seconds=seconds,
+        calls=dict.fromkeys(engine_profile.PARTS, 0),
+    )
+    assert p.ns(*engine_profile.FUSED_FLOOR) == pytest.approx(160.0)
+    short = mase.fused_floor(p, 139.0, engine_profile.FUSED_FLOOR)
+    assert "alone take at least 160 ns per robot-step, more than the 139" in short
+    assert "would be short" in short
+    room = mase.fused_floor(p, 180.0, engine_profile.FUSED_FLOOR)
+    assert "take 160 of the 180 ns per robot-step" in room
+    assert "the other 40 lie between them" in room
+    assert "and 20 of those would have to go" in room
+    within = mase.fused_floor(p, 210.0, engine_profile.FUSED_FLOOR)
+    assert "took 200 ns per robot-step, within the 210 the goal allows" in within
