@@ -336,9 +336,10 @@ def test_study_bench_runs_a_cut_preset_alone_and_joined(
 
 def test_mase_says_whether_a_fused_step_could_reach_the_goal() -> None:
     """What a step fused into its compiled passes would still pay (the physics
-    and the compiled loops) is set against the cost per robot-step the goal
-    allows: above it, no fusing reaches the goal; below it, the rest is what
-    would have to go; a whole step within it is short by the runs' spread."""
+    and the compiled loops, as a share of the profiled step, at the runs' median
+    step) is set against the cost per robot-step the goal allows: above it, no
+    fusing reaches the goal; below it, the rest is what would have to go; a
+    median step within it is short by the runs' spread."""
     mase = common.bench_module("mase")
     seconds = dict.fromkeys(engine_profile.PARTS, 0.0)
     seconds |= {"kinematic step": 20e-9, "compiled loops": 140e-9, "network": 40e-9}
@@ -352,13 +353,15 @@ def test_mase_says_whether_a_fused_step_could_reach_the_goal() -> None:
         seconds=seconds,
         calls=dict.fromkeys(engine_profile.PARTS, 0),
     )
-    assert p.ns(*engine_profile.FUSED_FLOOR) == pytest.approx(160.0)
-    short = mase.fused_floor(p, 139.0, engine_profile.FUSED_FLOOR)
-    assert "alone take at least 160 ns per robot-step, more than the 139" in short
+    floor = engine_profile.FUSED_FLOOR
+    assert p.ns(*floor) == pytest.approx(160.0)
+    # 80 % of the profiled step, at a median step of 180 ns: 144.
+    short = mase.fused_floor(p, 180.0, 139.0, floor)
+    assert "80% of this batch's step, so about 144 of the runs' median 180" in short
+    assert "more than the 139 the goal allows" in short
     assert "would be short" in short
-    room = mase.fused_floor(p, 180.0, engine_profile.FUSED_FLOOR)
-    assert "take 160 of the 180 ns per robot-step" in room
-    assert "the other 40 lie between them" in room
-    assert "and 20 of those would have to go" in room
-    within = mase.fused_floor(p, 210.0, engine_profile.FUSED_FLOOR)
-    assert "took 200 ns per robot-step, within the 210 the goal allows" in within
+    room = mase.fused_floor(p, 180.0, 160.0, floor)
+    assert "so about 144 of the runs' median 180 ns per robot-step;" in room
+    assert "the goal allows 160, so 20 of the other 36" in room
+    within = mase.fused_floor(p, 180.0, 190.0, floor)
+    assert "median step, 180 ns per robot-step, is within the 190" in within
