@@ -415,7 +415,7 @@ def fused_floor(p: Any, ours: float, need: float, floor_parts: tuple[str, ...]) 
             f"{need:.0f} the goal allows: they fall short by their spread, not by "
             "a part of the step"
         )
-    share = p.ns(*floor_parts) / (p.total * 1e9 / p.robot_steps)
+    share = p.share(*floor_parts)
     floor = share * ours
     said = (
         f"  the physics' own step and transfer and the compiled loops: {share:.0%} "

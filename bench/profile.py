@@ -203,6 +203,10 @@ class Profile:
         """CPU nanoseconds per robot-step of ``parts`` together."""
         return 1e9 * sum(self.seconds[part] for part in parts) / self.robot_steps
 
+    def share(self, *parts: str) -> float:
+        """The fraction of the batch's CPU time spent in ``parts`` together."""
+        return sum(self.seconds[part] for part in parts) / self.total
+
 
 def profile_task(
     name: str,
@@ -258,16 +262,15 @@ def report(p: Profile) -> str:
     for part in PARTS:
         sec = p.seconds[part]
         lines.append(
-            f"  {part:<16}{sec:>8.2f}{100 * sec / p.total:>7.1f}%"
-            f"{1e3 * sec / p.steps:>9.3f}{1e9 * sec / p.robot_steps:>15.1f}"
+            f"  {part:<16}{sec:>8.2f}{100 * p.share(part):>7.1f}%"
+            f"{1e3 * sec / p.steps:>9.3f}{p.ns(part):>15.1f}"
             f"{p.calls[part]:>8}"
         )
-    physics = p.seconds["chipmunk step"] + p.seconds["bulk transfer"]
-    if physics > 0.0:
+    physics = ("chipmunk step", "bulk transfer")
+    if p.share(*physics) > 0.0:
         lines.append(
-            f"  chipmunk + bulk transfer alone: {1e9 * physics / p.robot_steps:.0f} "
-            f"ns per robot-step, {p.robot_steps / physics:,.0f} robot-steps per "
-            "CPU-second"
+            f"  chipmunk + bulk transfer alone: {p.ns(*physics):.0f} ns per "
+            f"robot-step, {1e9 / p.ns(*physics):,.0f} robot-steps per CPU-second"
         )
     return "\n".join(lines)
 
