@@ -8,6 +8,7 @@ range); everything is batch-first numpy in trial-local coordinates.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -249,9 +250,40 @@ def draw_team(
     return position, heading
 
 
+RAN_OUT = -1
+"""What a bulk loop returns when its doubles run out."""
+UNDECIDED = -2
+"""What a bulk loop returns at a close call, left to the draw-by-draw path."""
+CLOSE_CALL = 1e-9
+"""Relative distance from ``separation`` within which the bulk path leaves the
+decision to ``math.dist``."""
+
+
 _BULK_DRAWS = (32, 256, 4096)
-"""Doubles drawn at once by :func:`_draw_team_in_bulk`, tried in turn; a team
-that needs more takes the draw-by-draw path."""
+"""Doubles drawn at once by :func:`draws_in_bulk`, tried in turn; a start that
+needs more takes the draw-by-draw path."""
+
+
+def draws_in_bulk(rng: np.random.Generator, place: Callable[[np.ndarray], int]) -> bool:
+    """Runs ``place`` on doubles of ``rng`` drawn in one call, a compiled loop
+    that makes a trial's draw-by-draw start from them and returns how many it
+    used, ``RAN_OUT`` when they are too few, or ``UNDECIDED`` at a close call.
+    The generator's state is saved first and restored after, then exactly the
+    doubles used are drawn again, so the stream it leaves (any buffered
+    half-word included) is that of the draw-by-draw path. False, with ``rng``
+    as it was, when ``place`` runs out of the most doubles tried or leaves a
+    decision to the caller, which then draws one by one."""
+    bit_generator = rng.bit_generator
+    saved = bit_generator.state
+    for size in _BULK_DRAWS:
+        used = place(rng.random(size))
+        bit_generator.state = saved
+        if used == UNDECIDED:
+            return False
+        if used >= 0:
+            rng.random(used)
+            return True
+    return False
 
 
 def _draw_team_in_bulk(
@@ -263,42 +295,44 @@ def _draw_team_in_bulk(
     position: np.ndarray,
     heading: np.ndarray,
 ) -> bool:
-    """:func:`draw_team` from doubles drawn in one call, which cost a third of
-    drawing them one by one with the rejections in Python. The generator's
-    state is saved first and restored after, then exactly the doubles the team
-    used are drawn again, so the stream it leaves (any buffered half-word
-    included) is that of the draw-by-draw path. False, with ``rng`` as it was
-    and nothing written to ``taken``, when the draws run out or a distance lies
-    too close to ``separation`` for the C library's ``hypot`` to be sure to
-    decide as Python's ``math.dist`` does (each is within an ulp of the exact
-    distance); the caller then draws one by one."""
-    bit_generator = rng.bit_generator
-    saved = bit_generator.state
+    """:func:`draw_team` by :func:`draws_in_bulk`, which costs a third of drawing
+    the doubles one by one with the rejections in Python. A close call is a
+    distance too near ``separation`` for the C library's ``hypot`` to be sure
+    to decide as Python's ``math.dist`` does (each is within an ulp of the
+    exact distance). Nothing is written to ``taken`` unless it succeeds."""
     points = np.array(taken, dtype=np.float64).reshape(-1, 2)
-    for size in _BULK_DRAWS:
-        used = _team_from_draws(
-            rng.random(size), low, high, separation, points, position, heading
+
+    def place(u: np.ndarray) -> int:
+        return int(
+            _team_from_draws(u, low, high, separation, points, position, heading)
         )
-        bit_generator.state = saved
-        if used == _UNDECIDED:
-            return False
-        if used >= 0:
-            rng.random(used)
-            taken.extend(map(tuple, position.tolist()))
-            return True
-    return False
+
+    if not draws_in_bulk(rng, place):
+        return False
+    taken.extend(map(tuple, position.tolist()))
+    return True
 
 
-_RAN_OUT = -1
-_UNDECIDED = -2
-_CLOSE_CALL = 1e-9
-"""Relative distance from ``separation`` within which the bulk path leaves the
-decision to ``math.dist``."""
+def apart_from(
+    points: np.ndarray, m: int, x: float, y: float, separation: float
+) -> int:  # pragma: no cover - compiled into the bulk start loops
+    """Whether (x, y) lies at least ``separation`` from each of the first ``m``
+    rows of ``points``, as ``math.dist`` would decide it: 1 if so, 0 if not,
+    ``UNDECIDED`` when a distance, checked in row order, lies too near
+    ``separation`` for the C library's ``hypot`` to be sure to decide alike."""
+    for q in range(m):
+        d = math.hypot(points[q, 0] - x, points[q, 1] - y)
+        if abs(d - separation) <= CLOSE_CALL * separation:
+            return UNDECIDED
+        if d < separation:
+            return 0
+    return 1
 
 
 @compiled(
     "intp(float64[::1], float64, float64, float64, float64[:, ::1], "
-    "float64[:, ::1], float64[::1])"
+    "float64[:, ::1], float64[::1])",
+    calls=(apart_from,),
 )
 def _team_from_draws(
     u: np.ndarray,
@@ -310,35 +344,27 @@ def _team_from_draws(
     heading: np.ndarray,
 ) -> int:  # pragma: no cover - compiled; tested against draw-by-draw draw_team
     """The team :func:`draw_team` draws from the doubles ``u``, with the
-    operations of :func:`uniform`: the number of doubles used, ``_RAN_OUT``
-    when ``u`` is too short, or ``_UNDECIDED`` at a close call."""
+    operations of :func:`uniform`: the number of doubles used, ``RAN_OUT``
+    when ``u`` is too short, or ``UNDECIDED`` at a close call."""
     n = heading.shape[0]
     m = taken.shape[0]
-    xs = np.empty(m + n)
-    ys = np.empty(m + n)
-    for q in range(m):
-        xs[q] = taken[q, 0]
-        ys[q] = taken[q, 1]
+    points = np.empty((m + n, 2))
+    points[:m] = taken
     k = 0
     for i in range(n):
         while True:
             if k + 3 > u.shape[0]:
-                return _RAN_OUT
+                return RAN_OUT
             x = low + (high - low) * u[k]
             y = low + (high - low) * u[k + 1]
             k += 2
-            apart = True
-            for q in range(m):
-                d = math.hypot(xs[q] - x, ys[q] - y)
-                if abs(d - separation) <= _CLOSE_CALL * separation:
-                    return _UNDECIDED
-                if d < separation:
-                    apart = False
-                    break
-            if apart:
+            verdict = apart_from(points, m, x, y, separation)
+            if verdict == UNDECIDED:
+                return UNDECIDED
+            if verdict:
                 break
-        xs[m] = x
-        ys[m] = y
+        points[m, 0] = x
+        points[m, 1] = y
         m += 1
         position[i, 0] = x
         position[i, 1] = y

@@ -15,8 +15,15 @@ from sdbc_sim.engine import TrialStepper
 from sdbc_sim.sensors import bearing, norm, normalised_reading, robot_sum
 from sdbc_sim.task import BodyState
 from sdbc_sim.tasks import make_task
-from sdbc_sim.tasks.gate_escape import GateEscape, GateEscapeConfig, GateEscapeTrials
+from sdbc_sim.tasks.gate_escape import (
+    GateEscape,
+    GateEscapeConfig,
+    GateEscapeTrials,
+    _ring_starts,
+)
 from trial_oracle import assert_same_trials
+
+from sdbc_sim import compiled
 
 PARKED = [[150.0, 20.0], [150.0, 60.0], [150.0, 180.0]]
 """Where the robots that stay still wait in the hand-written runs."""
@@ -165,6 +172,75 @@ def test_random_starts_are_valid_rings() -> None:
     gaps = np.linalg.norm(position[:, :, None] - position[:, None], axis=-1)
     assert np.all(gaps[:, ~np.eye(4, dtype=bool)] >= 2 * r)
     assert not trials.escaped.any() and np.all(trials.open_step == -1)
+
+
+@pytest.mark.parametrize("bulk", [False, True])
+def test_starts_are_numpys_uniform_draws(
+    bulk: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """reset draws each robot's ring angle until it fits, then its heading, one
+    by one or, once the loops are loaded, in bulk; either way its starts, and
+    the stream it leaves (a buffered half-word included), are those of
+    ``rng.uniform`` drawn angle by angle."""
+    if bulk:
+        compiled.load()
+    monkeypatch.setattr(compiled, "loaded", lambda: bulk)
+    task = GateEscape(GateEscapeConfig(robot_radius=12.0, start_spacing=24.0))
+    c = task.config
+    r, s = c.robot_radius, c.arena_size
+    gx, gy = task.gate_centre.tolist()
+
+    def with_uniform(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        position, heading = np.empty((c.n_robots, 2)), np.empty(c.n_robots)
+        for i in range(c.n_robots):
+            ring = (i + 1) * c.start_spacing
+            while True:
+                a = rng.uniform(0.0, 2.0 * math.pi)
+                p = (gx + ring * math.cos(a), gy + ring * math.sin(a))
+                inside = all(r <= v <= s - r for v in p)
+                if inside and all(
+                    math.dist(q, p) >= 2.0 * r for q in position[:i].tolist()
+                ):
+                    break
+            position[i], heading[i] = p, rng.uniform(-np.pi, np.pi)
+        return position, heading
+
+    seeds = range(400)
+    want_rngs = [np.random.default_rng(seed) for seed in seeds]
+    got_rngs = [np.random.default_rng(seed) for seed in seeds]
+    for rngs in (want_rngs, got_rngs):
+        for rng in rngs[1::2]:
+            # Leaves half of a 64-bit word buffered for the next 32-bit draw.
+            rng.integers(2**32, dtype=np.uint32)
+    want = [with_uniform(rng) for rng in want_rngs]
+    _, position, heading = task.reset(got_rngs)
+    for t, (want_position, want_heading) in enumerate(want):
+        assert np.array_equal(position[t].view(np.int64), want_position.view(np.int64))
+        assert np.array_equal(heading[t].view(np.int64), want_heading.view(np.int64))
+    for got_rng, want_rng in zip(got_rngs, want_rngs, strict=True):
+        assert got_rng.integers(2**32, dtype=np.uint32) == want_rng.integers(
+            2**32, dtype=np.uint32
+        )
+        assert got_rng.random() == want_rng.random()
+
+
+def test_bulk_starts_leave_close_calls_and_short_draws_to_the_caller() -> None:
+    """The bulk loop refuses to decide a distance within a relative 1e-9 of the
+    diameter (the C library's hypot and math.dist may round it apart) and says
+    when it runs out of doubles; reset then draws one by one."""
+    position, heading = np.empty((2, 2)), np.empty(2)
+    # Both robots at angle 0 from the gate (0, 100) on rings 10 apart: their
+    # centres lie exactly a diameter apart.
+    u = np.array([0.0, 0.5, 0.0, 0.5])
+    assert _ring_starts(u, 0.0, 100.0, 10.0, 5.0, 200.0, position, heading) == -2
+    # Radius 4: apart; four doubles used.
+    assert _ring_starts(u, 0.0, 100.0, 10.0, 4.0, 200.0, position, heading) == 4
+    assert position.tolist() == [[10.0, 100.0], [20.0, 100.0]]
+    assert heading.tolist() == [0.0, 0.0]
+    assert _ring_starts(u[:3], 0.0, 100.0, 10.0, 4.0, 200.0, position, heading) == -1
+    # Angle 0.5 (pi) lies outside the arena (x < 0): drawn again.
+    u = np.array([0.5, 0.0, 0.5, 0.5, 0.0, 0.5])
+    assert _ring_starts(u, 0.0, 100.0, 10.0, 4.0, 200.0, position, heading) == 6
 
 
 def test_same_seed_same_start() -> None:
