@@ -82,6 +82,23 @@ def engine_settings(pairs: list[str] | None) -> EngineSettings:
     return EngineSettings(physics=PhysicsSettings(**physics_overrides(pairs)))
 
 
+def source_tree(tree: Path) -> list[str]:
+    """The package folders of ``tree``, a checkout of this project at any
+    commit, to put first on a process's path so that it runs that commit's
+    engine with this environment's other packages.
+
+    Raises:
+        ValueError: If ``tree`` has no ``src/sdbc_sim/sdbc_sim/engine.py``.
+    """
+    tree = tree.resolve()
+    if not (tree / "src/sdbc_sim/sdbc_sim/engine.py").is_file():
+        raise ValueError(
+            f"{tree} is not a source tree of this project "
+            "(no src/sdbc_sim/sdbc_sim/engine.py)"
+        )
+    return [str(tree / "src/sdbc_sim"), str(tree / "src/sdbc_evolution")]
+
+
 def pin_to_core(core: int | None) -> int | None:
     """Pins this process (and the processes it starts later) to ``core``; None
     picks the last core this process may run on. Returns the core, or None where

@@ -37,7 +37,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from common import add_batch_arguments, batch_arguments, random_batch
+from common import add_batch_arguments, batch_arguments, random_batch, source_tree
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import EngineSettings, run_batch
 from sdbc_sim.tasks import make_task
@@ -67,16 +67,11 @@ def sources_digest() -> str:
 def with_engine(checkout: Path, argv: list[str]) -> None:
     """Runs this tool again, ``--engine`` left out of ``argv``, with the
     sources of ``checkout`` first on the path."""
-    src = checkout / "src"
-    if not (src / "sdbc_sim" / "sdbc_sim").is_dir():
-        raise SystemExit(f"identity: --engine {checkout}: no src/sdbc_sim there")
-    path = os.pathsep.join(
-        [
-            str(src / "sdbc_sim"),
-            str(src / "sdbc_evolution"),
-            os.environ.get("PYTHONPATH", ""),
-        ]
-    )
+    try:
+        packages = source_tree(checkout)
+    except ValueError as e:
+        raise SystemExit(f"identity: --engine: {e}") from None
+    path = os.pathsep.join([*packages, os.environ.get("PYTHONPATH", "")])
     os.execve(
         sys.executable,
         [sys.executable, __file__, *argv],

@@ -28,12 +28,18 @@ import subprocess
 import sys
 from pathlib import Path
 
-from common import add_batch_arguments, batch_arguments, physics_overrides, pin_to_core
+from common import (
+    add_batch_arguments,
+    batch_arguments,
+    physics_overrides,
+    pin_to_core,
+    source_tree,
+)
 
 _CHILD = """
-import json, sys, time
+import json, os, sys, time
 import numpy as np
-sys.path[:0] = [sys.argv[1] + "/src/sdbc_sim", sys.argv[1] + "/src/sdbc_evolution"]
+sys.path[:0] = sys.argv[1].split(os.pathsep)
 from sdbc_evolution.sdbc.characterisation import SdbcExtractor
 from sdbc_sim.engine import EngineSettings, run_batch
 from sdbc_sim.physics import PhysicsSettings
@@ -61,7 +67,8 @@ print(json.dumps({"robot_steps": int(r.length.sum()) * task.layout.n_bodies,
 def run_version(tree: Path, job: dict[str, object]) -> float:
     """Robot-steps per CPU-second of one batch with the code of ``tree``."""
     done = subprocess.run(
-        [sys.executable, "-c", _CHILD, str(tree), json.dumps(job)],
+        [sys.executable, "-c", _CHILD, os.pathsep.join(source_tree(tree))]
+        + [json.dumps(job)],
         capture_output=True,
         text=True,
         env={**os.environ, "PYTHONPATH": ""},
@@ -85,8 +92,10 @@ def main() -> None:
     physics = physics_overrides(args.physics)
     trees = {"old": args.old.resolve(), "new": args.new.resolve()}
     for tree in trees.values():
-        if not (tree / "src/sdbc_sim/sdbc_sim/engine.py").exists():
-            parser.error(f"{tree} is not a source tree of this project")
+        try:
+            source_tree(tree)
+        except ValueError as e:
+            parser.error(str(e))
     core = pin_to_core(args.core)
     rates = {(t, v): [] for t in names for v in trees}
     for k in range(args.alternations):

@@ -109,7 +109,10 @@ def test_identity_writes_with_the_sources_of_the_checkout_it_is_given(
         text=True,
     )
     assert missing.returncode != 0
-    assert f"--engine {tmp_path}: no src/sdbc_sim there" in missing.stderr
+    assert (
+        f"identity: --engine: {tmp_path.resolve()} is not a source tree of this "
+        "project (no src/sdbc_sim/sdbc_sim/engine.py)" in missing.stderr
+    )
 
 
 def test_profile_parts_add_up_and_unwrap() -> None:
