@@ -34,7 +34,9 @@ calls (so every part is exclusive and the parts add up):
   extractor's kernels too, which it takes once per batch and calls directly.
 
 The first 5 genomes run first, untimed, so that what a process pays once (first
-calls, numba imported and the compiled loops loaded) is not charged to a part.
+calls, numba imported and the compiled loops loaded) is not charged to a part;
+then the garbage the process holds is collected, untimed, so that what earlier
+work left (another model's batch) is not charged to this one.
 
 Every part is printed with its CPU seconds, its share, its cost per step and per
 robot-step, and the robot-steps per CPU-second the whole batch reached; the timer's
@@ -50,6 +52,7 @@ NAME=VALUE``, ``--core N``, ``--json FILE``).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import time
 from collections.abc import Callable
@@ -230,6 +233,9 @@ def profile_task(
     # of the step.
     warm_up = [SdbcExtractor(check_values=False)] if sdbc else []
     run_batch(task, g[:5], s[:5], warm_up, settings=settings)
+    # Garbage that earlier work in this process left (another model's batch,
+    # whose pymunk objects only the cyclic collector frees) is not this batch's.
+    gc.collect()
     with instrumented(clock, task, extractor, loops):
         t0 = time.process_time()
         result = run_batch(task, g, s, observers, settings=settings)

@@ -301,6 +301,35 @@ def test_mase_verdicts_read_the_median_ratio_s_interval(
     )
 
 
+def test_mase_runs_each_configuration_of_ours_in_a_warm_process_of_its_own(
+    tmp_path: Path,
+) -> None:
+    """Each configuration of ours runs its batches in its own process, warmed up
+    first, with the genomes and seeds the same generator gives in this one
+    (the batch's robot-steps and mean fitness)."""
+    mase = common.bench_module("mase")
+    configs = [("kinematic", True), ("rigid", False)]
+    ours = [
+        mase.EngineProcess(
+            "resource_sharing", model, sdbc, 2, 2, 7, tmp_path / f"{k}.log"
+        )
+        for k, (model, sdbc) in enumerate(configs)
+    ]
+    try:
+        assert len({os.getpid(), *(e.proc.pid for e in ours)}) == 3
+        for e, (model, sdbc) in zip(ours, configs, strict=True):
+            rng = np.random.default_rng(7)
+            mase.engine_batch("resource_sharing", 10, 2, sdbc, rng, model)
+            want = mase.engine_batch("resource_sharing", 2, 2, sdbc, rng, model)
+            steps, cpu, wall, fitness = e.batch()
+            assert (steps, fitness) == (want[0], want[3])
+            assert cpu > 0 and wall > 0
+    finally:
+        for e in ours:
+            e.close()
+    assert [e.proc.returncode for e in ours] == [0, 0]
+
+
 def test_the_median_interval_takes_the_order_statistics_of_its_coverage() -> None:
     mase = common.bench_module("mase")
     assert mase.median_interval([5.0, 1.0, 3.0, 2.0, 4.0]) == (1.0, 5.0)
