@@ -30,7 +30,12 @@ and ``sin`` call here, which its tests compare to the bit. The task state
 speed's ``hypot`` by :func:`sdbc_sim.libm.hypot`, glibc's operations inline,
 compared to the bit with numpy's ``np.hypot``, which calls glibc's.
 Predator-prey's turns wrap angles with ``np.mod``, which numba and numpy both
-compute as an exact ``fmod`` with the same sign correction.
+compute as an exact ``fmod`` with the same sign correction. A trial's start,
+drawn in bulk (resource sharing's and gate escape's), takes its cosines, sines
+and ``hypot`` from the C library numba calls, as the Python path it replaces
+takes them through the ``math`` module (its tests compare the starts to the
+bit; a distance that ``hypot`` and ``math.dist`` might round apart goes back
+to that path).
 """
 
 from __future__ import annotations
