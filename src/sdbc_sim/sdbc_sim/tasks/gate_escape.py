@@ -276,7 +276,7 @@ class GateEscape(Task[GateEscapeTrials]):
         # the physics does not load numba for a trial's start.
         bulk = compiled_loops.loaded()
         for t, rng in enumerate(rngs):
-            if bulk and self._starts_in_bulk(rng, position[t], angle[t]):
+            if bulk and self._starts_in_bulk(rng, gx, gy, position[t], angle[t]):
                 continue
             placed: list[tuple[float, float]] = []
             for i in range(n):
@@ -306,13 +306,18 @@ class GateEscape(Task[GateEscapeTrials]):
         return trials, position, angle
 
     def _starts_in_bulk(
-        self, rng: np.random.Generator, position: np.ndarray, heading: np.ndarray
+        self,
+        rng: np.random.Generator,
+        gx: float,
+        gy: float,
+        position: np.ndarray,
+        heading: np.ndarray,
     ) -> bool:
-        """One trial's starts (into ``position`` (N, 2) and ``heading`` (N,))
-        by :func:`~sdbc_sim.arena.draws_in_bulk`, at two fifths of the cost of
-        the draw-by-draw loop in Python; False when that loop must decide."""
+        """One trial's starts around the gate centre (``gx``, ``gy``), into
+        ``position`` (N, 2) and ``heading`` (N,), by
+        :func:`~sdbc_sim.arena.draws_in_bulk`, at two fifths of the cost of the
+        draw-by-draw loop in Python; False when that loop must decide."""
         c = self.config
-        gx, gy = self.gate_centre.tolist()
 
         def place(u: np.ndarray) -> int:
             return int(
