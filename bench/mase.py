@@ -37,14 +37,16 @@ fd13449, this benchmark
    the whole interval does, is short if the whole interval is, and is at the
    goal within the run's noise otherwise; for one that does not reach it, it
    profiles one more batch with that model (``bench/profile.py``: each part of
-   our step in ns per robot-step, the compiled loops as a part of their own) and
+   our step in ns per robot-step, the compiled loops and numpy's ``exp`` and
+   ``arctan2`` as parts of their own) and
    prints it beside MASE's whole step with the SDBC in the same unit (from MASE's
    median rate) and the cost per robot-step the goal would need, which shows
    where the difference lies, and says whether a step fused into its compiled
    passes could reach the goal: what such a step would still pay (the physics'
-   own step and transfer, and the compiled loops, whose arithmetic gives the
-   results their bits) against what lies between them (``--no-profile`` leaves
-   the profiles out).
+   own step and transfer, the compiled loops, whose arithmetic gives the results
+   their bits, and numpy's ``exp`` and ``arctan2``, whose implementations give
+   theirs) against what lies between them (``--no-profile`` leaves the
+   profiles out).
 
 MASE's robots are kinematic, as ``kinematic`` models them; ``rigid`` (our default)
 puts every contact through pymunk's solver.
@@ -495,7 +497,8 @@ def fused_floor(p: Any, ours: float, need: float, floor_parts: tuple[str, ...]) 
     share = p.share(*floor_parts)
     floor = share * ours
     said = (
-        f"  the physics' own step and transfer and the compiled loops: {share:.0%} "
+        f"  the physics' own step and transfer, the compiled loops and numpy's exp "
+        f"and arctan2: {share:.0%} "
         f"of this batch's step, so about {floor:.0f} of the runs' median "
         f"{ours:.0f} ns per robot-step"
     )
@@ -503,13 +506,13 @@ def fused_floor(p: Any, ours: float, need: float, floor_parts: tuple[str, ...]) 
         return (
             f"{said}, more than the {need:.0f} the goal allows: even a step fused "
             "into its compiled passes, with nothing between them, would be short; "
-            "the loops (whose arithmetic gives the results their bits) or the "
-            "physics would have to get faster"
+            "the loops and numpy's maths (which give the results their bits) or "
+            "the physics would have to get faster"
         )
     return (
         f"{said}; the goal allows {need:.0f}, so {ours - need:.0f} of the other "
-        f"{ours - floor:.0f}, which lie between them (numpy's exp and arctan2, "
-        "Python, arrays, set-up), would have to go"
+        f"{ours - floor:.0f}, which lie between them (Python, numpy's arrays, "
+        "set-up), would have to go"
     )
 
 

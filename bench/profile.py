@@ -31,7 +31,11 @@ calls (so every part is exclusive and the parts add up):
 - compiled loops (with ``--loops``): every call of a loop of
   :mod:`sdbc_sim.compiled`, taken out of the part that made it, so that each
   part keeps what lies between its loops (numpy's work, Python's); the SDBC
-  extractor's kernels too, which it takes once per batch and calls directly.
+  extractor's kernels too, which it takes once per batch and calls directly;
+- numpy maths (with ``--loops``): numpy's ``exp`` (the network's sigmoids) and
+  ``arctan2`` (bearings), likewise taken out of their parts: numpy's own
+  implementations of them give those values their bits, in a batch and in a
+  controller node alike, so a compiled loop could not take them over.
 
 The first 5 genomes run first, untimed, so that what a process pays once (first
 calls, numba imported and the compiled loops loaded) is not charged to a part;
@@ -96,12 +100,20 @@ PARTS = (
     "setup",
     "other",
     "compiled loops",
+    "numpy maths",
 )
-FUSED_FLOOR = ("chipmunk step", "kinematic step", "bulk transfer", "compiled loops")
+FUSED_FLOOR = (
+    "chipmunk step",
+    "kinematic step",
+    "bulk transfer",
+    "compiled loops",
+    "numpy maths",
+)
 """The parts a step fused into a few compiled passes would still pay: the
-physics' own step and the transfer to and from it, and the compiled loops, whose
-arithmetic (each IEEE operation, in its order) gives the results their bits.
-The other parts are what lies between them."""
+physics' own step and the transfer to and from it, the compiled loops, whose
+arithmetic (each IEEE operation, in its order) gives the results their bits,
+and numpy's ``exp`` and ``arctan2``, whose implementations give theirs. The
+other parts are what lies between them."""
 
 
 @dataclass
@@ -138,7 +150,7 @@ def instrumented(
     clock: Clock, task: Task, extractor: SdbcExtractor | None, loops: bool = False
 ):
     """The engine's functions wrapped in ``clock`` for the duration; with
-    ``loops``, the compiled loops too."""
+    ``loops``, the compiled loops and numpy's ``exp`` and ``arctan2`` too."""
     targets: list[tuple[Any, str, str]] = [
         (pymunk.Space, "step", "chipmunk step"),
         (TrialSpaces, "read", "bulk transfer"),
@@ -165,7 +177,11 @@ def instrumented(
             (extractor, "start", "setup"),
         ]
     if loops:
-        targets.append((compiled._Loop, "__call__", "compiled loops"))
+        targets += [
+            (compiled._Loop, "__call__", "compiled loops"),
+            (np, "exp", "numpy maths"),
+            (np, "arctan2", "numpy maths"),
+        ]
     with ExitStack() as stack:
         for owner, name, part in targets:
             # A class's function is wrapped as a function (it binds as a method);
@@ -288,7 +304,7 @@ def main() -> None:
     parser.add_argument(
         "--loops",
         action="store_true",
-        help="the compiled loops as a part of their own",
+        help="the compiled loops, and numpy's exp and arctan2, as parts of their own",
     )
     parser.add_argument("--core", type=int, help="pin to this core (default: none)")
     parser.add_argument("--json", type=Path, help="also write the profiles here")

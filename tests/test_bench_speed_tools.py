@@ -139,13 +139,18 @@ def test_profile_times_the_kinematic_step_in_place_of_chipmunk() -> None:
 
 def test_profile_takes_the_compiled_loops_out_of_their_parts() -> None:
     """With ``loops``, the calls of the compiled loops (the SDBC extractor's
-    kernels included) are counted in a part of their own: the parts still add
-    up, and the loops are unwrapped after; without it that part stays empty."""
+    kernels included) are counted in a part of their own, and numpy's ``exp`` and
+    ``arctan2`` in another: the parts still add up, and the loops and numpy are
+    unwrapped after; without it those parts stay empty."""
     call, load = compiled._Loop.__call__, compiled._Loop.load
+    exp, arctan2 = np.exp, np.arctan2
     settings = common.engine_settings(["model=kinematic"])
     args = ("gate_escape", 2, 2, 20, 0, settings)
     p = engine_profile.profile_task(*args, sdbc=True, loops=True)
     assert (compiled._Loop.__call__, compiled._Loop.load) == (call, load)
+    assert (np.exp, np.arctan2) == (exp, arctan2)
+    # Every step takes the exp of the network's two layers.
+    assert p.calls["numpy maths"] >= 2 * 20
     # The SDBC extractor's kernels, which it calls directly, count too.
     bare = engine_profile.profile_task(*args, sdbc=False, loops=True)
     assert p.calls["compiled loops"] >= bare.calls["compiled loops"] + 20
@@ -153,8 +158,8 @@ def test_profile_takes_the_compiled_loops_out_of_their_parts() -> None:
     # Every step calls the drive's loop at least.
     assert p.calls["compiled loops"] >= 20
     whole = engine_profile.profile_task(*args, sdbc=True)
-    assert whole.calls["compiled loops"] == 0
-    assert whole.seconds["compiled loops"] == 0.0
+    assert whole.calls["compiled loops"] == whole.calls["numpy maths"] == 0
+    assert whole.seconds["compiled loops"] == whole.seconds["numpy maths"] == 0.0
 
 
 @pytest.mark.parametrize("model", ["rigid", "kinematic"])
