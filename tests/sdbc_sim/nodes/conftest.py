@@ -153,10 +153,14 @@ def gate_escape_graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live
 def start_node(tmp_path: Path):
     """``start_node(module, *args)``: a node program started as a process (module
     run with ``python -m``), output on its stdout, with this test's ROS_HOME and
-    import path; every one still running at the end is killed."""
+    import path; every one still running at the end is killed, after SIGUSR1 and
+    a second to write its threads' stacks, which the end of the test prints (so a
+    hung node's report says where it hung)."""
     import os
+    import signal
     import subprocess
     import sys
+    import time
 
     started: list[subprocess.Popen[str]] = []
 
@@ -176,10 +180,15 @@ def start_node(tmp_path: Path):
         return process
 
     yield start
-    for process in started:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+    hung = [process for process in started if process.poll() is None]
+    for process in hung:
+        process.send_signal(signal.SIGUSR1)
+    if hung:
+        time.sleep(1.0)
+    for process in hung:
+        process.kill()
+        output = process.communicate()[0]
+        print(f"still running at the end: {' '.join(process.args)}\n{output}")
 
 
 @pytest.fixture

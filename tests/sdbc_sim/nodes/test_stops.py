@@ -61,6 +61,20 @@ def test_a_node_stops_cleanly(name, signum, tmp_path, start_node, test_node):
         assert (tmp_path / "bag" / "metadata.yaml").exists()
 
 
+def test_a_node_says_where_it_is_on_sigusr1(start_node, test_node):
+    """SIGUSR1 has a node program write its threads' Python stacks and go on
+    (how a hung node says where it hung); SIGINT then still stops it cleanly."""
+    process = start_node(*PROGRAMS["simulator"])
+    wait_for_nodes(test_node, process, {"simulator"})
+    process.send_signal(signal.SIGUSR1)
+    time.sleep(1.0)
+    assert process.poll() is None
+    output = stop(process, signal.SIGINT)
+    # faulthandler's stacks: "Current thread 0x... (most recent call first):".
+    assert "thread 0x" in output.lower() and "(most recent call first)" in output
+    assert "startup.py" in output
+
+
 def evolution(start_node, tmp_path: Path, generations: int) -> subprocess.Popen[str]:
     config = tmp_path / "run.yaml"
     config.write_text(TINY_RUN.replace("GENERATIONS", str(generations)))

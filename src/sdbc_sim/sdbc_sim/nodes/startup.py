@@ -16,8 +16,10 @@ what the program's ``serve`` returns.
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import gc
 import os
+import signal
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -141,6 +143,11 @@ def keep_dds_on_loopback(environ: dict[str, str] | None = None) -> None:
 
 def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) -> int:
     """Runs ``program`` with the command line ``argv`` (``sys.argv`` if None)."""
+    # A node that hangs (twice seen on its way out, in rclpy's compiled code)
+    # says where on SIGUSR1, however it was started: its threads' Python stacks
+    # on stderr. A graph's launcher sends it before SIGKILL; anyone can, with
+    # ``kill -USR1 PID``.
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     keep_dds_on_loopback()
     try:
         ros_argv, plain = split_ros_arguments(
