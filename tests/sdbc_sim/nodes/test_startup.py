@@ -85,3 +85,27 @@ def test_own_arguments_are_parsed_and_nodes_made_before_a_failure_are_destroyed(
     argv = ["test_node", "--count", "3", "--ros-args", "-p", "use_sim_time:=false"]
     assert run_node_program(spec, argv) == 2
     assert len(made) == 2 and all(destroyed(node) for node in made)
+
+
+def test_sigusr1_writes_the_stacks_to_the_original_stderr_when_stderr_has_no_file(
+    monkeypatch, capfd
+):
+    """A ``sys.stderr`` without a file descriptor (a notebook's, a test's
+    capture) does not stop a node program: SIGUSR1's stacks go to the
+    interpreter's original stderr, and the process goes on."""
+    import faulthandler
+    import io
+    import os
+    import signal
+    import sys
+
+    from sdbc_sim.nodes.startup import stacks_on_sigusr1
+
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    try:
+        stacks_on_sigusr1()
+        os.kill(os.getpid(), signal.SIGUSR1)
+    finally:
+        faulthandler.unregister(signal.SIGUSR1)
+    err = capfd.readouterr().err
+    assert "(most recent call first)" in err and "test_startup.py" in err

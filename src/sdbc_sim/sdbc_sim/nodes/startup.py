@@ -141,13 +141,26 @@ def keep_dds_on_loopback(environ: dict[str, str] | None = None) -> None:
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
 
 
+def stacks_on_sigusr1() -> None:
+    """Has SIGUSR1 write every thread's Python stack to stderr (``kill -USR1
+    PID``; the process goes on). A node that hangs (twice seen on its way out, in
+    rclpy's compiled code) then says where, however it was started; a graph's
+    launcher sends SIGUSR1 before SIGKILL. An interpreter's original stderr
+    stands in for a ``sys.stderr`` without a file descriptor (a notebook's, a
+    test's capture); with neither, no stacks rather than no node."""
+    for stream in (sys.stderr, sys.__stderr__):
+        if stream is None:
+            continue
+        try:
+            faulthandler.register(signal.SIGUSR1, file=stream, all_threads=True)
+        except (AttributeError, OSError, ValueError):
+            continue
+        return
+
+
 def run_node_program(program: NodeProgram[NodeT], argv: Sequence[str] | None) -> int:
     """Runs ``program`` with the command line ``argv`` (``sys.argv`` if None)."""
-    # A node that hangs (twice seen on its way out, in rclpy's compiled code)
-    # says where on SIGUSR1, however it was started: its threads' Python stacks
-    # on stderr. A graph's launcher sends it before SIGKILL; anyone can, with
-    # ``kill -USR1 PID``.
-    faulthandler.register(signal.SIGUSR1, all_threads=True)
+    stacks_on_sigusr1()
     keep_dds_on_loopback()
     try:
         ros_argv, plain = split_ros_arguments(
