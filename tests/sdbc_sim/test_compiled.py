@@ -26,6 +26,19 @@ def test_importing_the_simulator_and_its_tasks_does_not_import_numba() -> None:
     assert fresh(code) == "False"
 
 
+def test_a_start_drawn_before_the_loops_load_does_not_import_numba() -> None:
+    """The starts drawn in bulk (resource sharing's, gate escape's) are drawn one
+    by one in a process that has not loaded the loops."""
+    code = (
+        "import sys, numpy as np\n"
+        "from sdbc_sim.tasks import make_task\n"
+        "for name in ('gate_escape', 'resource_sharing'):\n"
+        "    make_task(name).reset([np.random.default_rng(s) for s in range(3)])\n"
+        "print('numba' in sys.modules)"
+    )
+    assert fresh(code) == "False"
+
+
 def test_setting_up_a_batch_loads_every_loop() -> None:
     """Even a trial that never needs a loop (a still team, no walls) loads them."""
     code = (

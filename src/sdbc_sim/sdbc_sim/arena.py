@@ -236,12 +236,7 @@ def draw_team(
     """
     position = np.empty((n, 2))
     heading = np.empty(n)
-    # In bulk only where the loops are loaded: a process that never steps the
-    # physics does not load numba for a trial's start.
-    if not (
-        compiled_loops.loaded()
-        and _draw_team_in_bulk(rng, low, high, separation, taken, position, heading)
-    ):
+    if not _draw_team_in_bulk(rng, low, high, separation, taken, position, heading):
         for i in range(n):
             p = draw_apart(rng, low, high, separation, taken, task, f"robot {i}")
             taken.append(p)
@@ -272,7 +267,11 @@ def draws_in_bulk(rng: np.random.Generator, place: Callable[[np.ndarray], int]) 
     doubles used are drawn again, so the stream it leaves (any buffered
     half-word included) is that of the draw-by-draw path. False, with ``rng``
     as it was, when ``place`` runs out of the most doubles tried or leaves a
-    decision to the caller, which then draws one by one."""
+    decision to the caller, which then draws one by one; False at once where the
+    compiled loops are not loaded: a process that never steps the physics does
+    not load numba for a trial's start."""
+    if not compiled_loops.loaded():
+        return False
     bit_generator = rng.bit_generator
     saved = bit_generator.state
     for size in _BULK_DRAWS:

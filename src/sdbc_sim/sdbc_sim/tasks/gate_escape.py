@@ -55,7 +55,6 @@ from typing import Literal
 
 import numpy as np
 
-from sdbc_sim import compiled as compiled_loops
 from sdbc_sim.arena import (
     RAN_OUT,
     UNDECIDED,
@@ -272,11 +271,8 @@ class GateEscape(Task[GateEscapeTrials]):
         position = np.empty((b, n, 2))
         angle = np.empty((b, n))
         gx, gy = self.gate_centre.tolist()
-        # In bulk only where the loops are loaded: a process that never steps
-        # the physics does not load numba for a trial's start.
-        bulk = compiled_loops.loaded()
         for t, rng in enumerate(rngs):
-            if bulk and self._starts_in_bulk(rng, gx, gy, position[t], angle[t]):
+            if self._starts_in_bulk(rng, gx, gy, position[t], angle[t]):
                 continue
             placed: list[tuple[float, float]] = []
             for i in range(n):
